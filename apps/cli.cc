@@ -1,0 +1,26 @@
+#include "apps/cli.h"
+
+#include <CLI/CLI.hpp>
+#include <exception>
+#include <iostream>
+
+namespace echoservo::apps {
+
+int RunCli(int argc, char** argv) {
+  CLI::App app{
+      "echoservo: ultrasound-guided motion-compensation catheter servo, simulator and model lab"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "echoservo 0.1.0");
+  AddSimCommands(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    std::cerr << "echoservo: error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace echoservo::apps

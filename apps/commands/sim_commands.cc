@@ -1,0 +1,12 @@
+#include <CLI/CLI.hpp>
+
+#include "apps/cli.h"
+
+namespace echoservo::apps {
+
+void AddSimCommands(CLI::App& app) {
+  auto* sim = app.add_subcommand("sim", "Simulated catheter experiments (the seed's bench tests)");
+  sim->require_subcommand(1);
+}
+
+}  // namespace echoservo::apps

@@ -1,0 +1,60 @@
+// Reference trajectories for the catheter tip (mm along the catheter axis, s).
+//
+// `SineTrajectory` is the seed's 1 Hz test motion. `MitralTrajectory` is a documented
+// multi-harmonic model of the human mitral annulus along the ventricle's long axis
+// (docs/mitral_trajectory.md): a systolic excursion towards the apex, a fast early-
+// diastolic return, diastasis and an atrial kick, built from keyframes and truncated
+// to 10 harmonics; at 72 bpm and 14 mm peak to peak it peaks near 200 mm/s and
+// 3800 mm/s². Trajectories are known ahead of time, so compensators may look ahead.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "estimation/fourier_motion.h"
+
+namespace echoservo::control {
+
+using estimation::MotionSample;
+
+class Trajectory {
+ public:
+  virtual ~Trajectory() = default;
+  virtual MotionSample Evaluate(double t_s) const = 0;
+  virtual std::string name() const = 0;
+};
+
+class SineTrajectory final : public Trajectory {
+ public:
+  // Throws std::invalid_argument for non-finite or non-positive amplitude/frequency.
+  SineTrajectory(double amplitude_mm, double frequency_hz);
+  MotionSample Evaluate(double t_s) const override;
+  std::string name() const override { return "sine"; }
+
+ private:
+  double amplitude_mm_;
+  double frequency_hz_;
+};
+
+struct MitralOptions {
+  double heart_rate_bpm = 72.0;
+  double peak_to_peak_mm = 14.0;
+  int harmonics = 10;
+};
+
+class MitralTrajectory final : public Trajectory {
+ public:
+  // Throws std::invalid_argument outside 30–200 bpm, 1–40 mm, 1–30 harmonics.
+  explicit MitralTrajectory(MitralOptions options = {});
+  MotionSample Evaluate(double t_s) const override { return motion_.Evaluate(t_s); }
+  std::string name() const override { return "mitral"; }
+  const estimation::FourierMotion& motion() const { return motion_; }
+
+ private:
+  estimation::FourierMotion motion_;
+};
+
+// "sine" (5 mm, 1 Hz) or "mitral" (defaults); throws std::invalid_argument otherwise.
+std::unique_ptr<Trajectory> MakeTrajectory(const std::string& name);
+
+}  // namespace echoservo::control

@@ -1,0 +1,101 @@
+// A named physical effect of the guidewire–sheath transmission.
+//
+// The catheter model (hw/transmission_model.h) is a fixed pipeline of stages:
+//   friction force (N, opposing base motion) → drive position (mm, base minus axial
+//   compliance) → deadzone width (mm) → tip dynamics inside the deadzone → tip sensor.
+// An Effect contributes to one or more stages through the hooks below; every hook has
+// a neutral default, so an effect overrides only what it changes. Effects are stateless:
+// their parameters arrive as a block of doubles (`p`, laid out as parameters()) and all
+// state lives in the model, so the simulator and the model lab share one implementation.
+// Units: mm, s, N, rad. Positive base motion pushes the guidewire towards the tip.
+//
+// Extension: derive from Effect, override the protected Do* hooks, describe the
+// parameters, and register a factory (see docs/adding_an_effect.md).
+#pragma once
+
+#include <span>
+#include <string>
+#include <string_view>
+
+#include "hw/catheter_config.h"
+
+namespace echoservo::hw {
+
+// One fitted/simulated parameter of an effect.
+struct ParameterSpec {
+  std::string name;      // e.g. "f0_n"; fully qualified as "<effect>.<name>"
+  std::string unit;      // e.g. "N", "N/(mm/s)", "s", "1"
+  double default_value;  // typical physical value (simulator default, fit start)
+  double lower;          // physical bounds used to validate and to bound fits
+  double upper;
+  std::string doc;
+};
+
+// Which part of the pipeline an effect acts on (for reports and diagnosis).
+enum class EffectStage { kFriction, kCompliance, kBacklash, kTipDynamics, kSensor };
+std::string_view ToString(EffectStage stage);
+
+// Geometry seen by every hook, derived once from CatheterConfig.
+struct EffectContext {
+  double total_bend_rad = 0.0;  // θ
+  double gap_mm = 0.0;          // D_sheath − D_guidewire
+  double tip_load_n = 0.0;      // normal force near the tip
+  static EffectContext From(const CatheterConfig& config);
+};
+
+class Effect {
+ public:
+  virtual ~Effect() = default;
+  Effect(const Effect&) = delete;
+  Effect& operator=(const Effect&) = delete;
+
+  virtual std::string_view name() const = 0;
+  // One paragraph: the physics and the equation.
+  virtual std::string_view description() const = 0;
+  // What the effect looks like in measured data (used by `lab diagnose`).
+  virtual std::string_view signature() const = 0;
+  virtual EffectStage stage() const = 0;
+  virtual std::span<const ParameterSpec> parameters() const = 0;
+
+  // Friction magnitude (N, >= 0) added at base speed |v| (mm/s).
+  double FrictionMagnitudeN(double speed_mm_s, const EffectContext& c, const double* p) const {
+    return DoFrictionMagnitudeN(speed_mm_s, c, p);
+  }
+  // Multiplier (>= 0) applied to the summed friction magnitude.
+  double FrictionScale(const EffectContext& c, const double* p) const {
+    return DoFrictionScale(c, p);
+  }
+  // Offset (mm) added to the base position to give the drive position, given the
+  // signed friction force the guidewire carries.
+  double DriveOffsetMm(double friction_force_n, const EffectContext& c, const double* p) const {
+    return DoDriveOffsetMm(friction_force_n, c, p);
+  }
+  // Deadzone width (mm) after this effect, from the width so far and the friction level
+  // (the breakaway friction magnitude, N).
+  double BacklashWidthMm(double width_mm, double friction_level_n, const EffectContext& c,
+                         const double* p) const {
+    return DoBacklashWidthMm(width_mm, friction_level_n, c, p);
+  }
+  // Time constant (s) with which the tip approaches the band the deadzone allows; 0: instant.
+  double TraversalTimeConstantS(const double* p) const { return DoTraversalTimeConstantS(p); }
+  // Tip sensor: extra latency (s) and gain.
+  double SensorDelayS(const double* p) const { return DoSensorDelayS(p); }
+  double SensorScale(const double* p) const { return DoSensorScale(p); }
+
+ protected:
+  Effect() = default;
+  virtual double DoFrictionMagnitudeN(double, const EffectContext&, const double*) const {
+    return 0.0;
+  }
+  virtual double DoFrictionScale(const EffectContext&, const double*) const { return 1.0; }
+  virtual double DoDriveOffsetMm(double, const EffectContext&, const double*) const { return 0.0; }
+  virtual double DoBacklashWidthMm(double width_mm, double, const EffectContext&,
+                                   const double*) const {
+    return width_mm;
+  }
+  virtual double DoTraversalTimeConstantS(const double*) const { return 0.0; }
+  virtual double DoSensorDelayS(const double*) const { return 0.0; }
+  virtual double DoSensorScale(const double*) const { return 1.0; }
+};
+
+}  // namespace echoservo::hw

@@ -1,0 +1,28 @@
+// viscous_friction: F = b · |v|.
+#include "hw/effects/builtin_effects.h"
+
+namespace echoservo::hw {
+namespace {
+
+class ViscousFriction final : public DescribedEffect {
+ public:
+  ViscousFriction()
+      : DescribedEffect(
+            "viscous_friction", EffectStage::kFriction,
+            "Lubricated (velocity-proportional) friction of the guidewire in the sheath: "
+            "F = b*|v|, opposing sliding, with v the base speed (mm/s).",
+            "force grows linearly with speed; force residual proportional to velocity",
+            {{"b_n_per_mm_s", "N/(mm/s)", 0.006, 0.0, 0.1, "viscous coefficient"}}) {}
+
+ protected:
+  double DoFrictionMagnitudeN(double speed_mm_s, const EffectContext&,
+                              const double* p) const override {
+    return p[0] * speed_mm_s;
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<Effect> MakeViscousFriction() { return std::make_unique<ViscousFriction>(); }
+
+}  // namespace echoservo::hw

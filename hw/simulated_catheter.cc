@@ -1,0 +1,141 @@
+#include "hw/simulated_catheter.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace echoservo::hw {
+namespace {
+
+constexpr double kMmPerM = 1000.0;  // F/m in N/kg = m/s², ×1000 for mm/s²
+
+EffectRegistry& Registry() {
+  static EffectRegistry registry = EffectRegistry::WithBuiltinEffects();
+  return registry;
+}
+
+TransmissionModel MakeModel(const PlantOptions& o) {
+  TransmissionModel model(Registry(), o.effects, o.config);
+  for (const auto& [name, value] : o.parameters) model.SetParameter(name, value);
+  return model;
+}
+
+void ValidateOptions(const PlantOptions& o) {
+  const ActuatorParams& a = o.actuator;
+  auto require = [](bool ok, const char* field) {
+    if (!ok) throw std::invalid_argument(std::string("plant options: '") + field + "' must be finite and > 0");
+  };
+  require(std::isfinite(a.force_constant_n_per_a) && a.force_constant_n_per_a > 0, "actuator.force_constant_n_per_a");
+  require(std::isfinite(a.current_limit_a) && a.current_limit_a > 0, "actuator.current_limit_a");
+  require(std::isfinite(a.current_time_constant_s) && a.current_time_constant_s > 0, "actuator.current_time_constant_s");
+  require(std::isfinite(a.moving_mass_kg) && a.moving_mass_kg > 0, "actuator.moving_mass_kg");
+  require(std::isfinite(a.travel_mm) && a.travel_mm > 0, "actuator.travel_mm");
+  require(std::isfinite(a.end_stop_stiffness_n_per_mm) && a.end_stop_stiffness_n_per_mm > 0, "actuator.end_stop_stiffness_n_per_mm");
+  require(o.substeps > 0 && o.substeps <= 1000, "substeps");
+}
+
+}  // namespace
+
+SimulatedCatheter::SimulatedCatheter(PlantOptions options)
+    : options_((ValidateOptions(options), std::move(options))),
+      model_(MakeModel(options_)),
+      tip_history_(1e-3 / options_.substeps, 0.1 + 1e-3),
+      rng_(options_.seed) {
+  s_base_ = AddStateInterface(std::string(iface::kBasePosition), "mm");
+  s_vel_ = AddStateInterface(std::string(iface::kBaseVelocity), "mm/s");
+  s_current_ = AddStateInterface(std::string(iface::kActuatorCurrent), "A");
+  s_force_ = AddStateInterface(std::string(iface::kActuatorForce), "N");
+  s_sensor_ = AddStateInterface(std::string(iface::kSensorForce), "N");
+  s_tip_ = AddStateInterface(std::string(iface::kTipPosition), "mm");
+  s_fault_ = AddStateInterface(std::string(iface::kFaultCount), "1");
+  c_force_ = AddCommandInterface(std::string(iface::kActuatorForce), "N");
+  ResetTo(0.0);
+}
+
+void SimulatedCatheter::ResetTo(double base_mm) {
+  const double half = 0.5 * options_.actuator.travel_mm;
+  if (!std::isfinite(base_mm) || std::abs(base_mm) > half) {
+    throw std::invalid_argument("simulated catheter: reset position outside travel");
+  }
+  truth_ = PlantTruth{};
+  truth_.base_mm = base_mm;
+  truth_.drive_mm = model_.DriveMm(base_mm, 0.0);
+  truth_.tip_mm = truth_.drive_mm;
+  current_a_ = 0.0;
+  tip_history_.Reset(truth_.tip_mm);
+}
+
+void SimulatedCatheter::DoConfigure() { ResetTo(truth_.base_mm); }
+
+void SimulatedCatheter::DoActivate() { current_a_ = 0.0; }
+
+double SimulatedCatheter::Quantise(double v, double q) const {
+  return q > 0.0 ? q * std::round(v / q) : v;
+}
+
+void SimulatedCatheter::DoRead(double, double) {
+  const SensorParams& s = options_.sensors;
+  const double noise = options_.sensor_noise ? 1.0 : 0.0;
+  const double tip_true =
+      model_.SensorScale() * tip_history_.Delayed(model_.SensorDelayS());
+  set_state(s_base_, Quantise(truth_.base_mm, s.base_quantum_mm));
+  set_state(s_vel_, truth_.base_velocity_mm_s);
+  set_state(s_current_, current_a_);
+  set_state(s_force_, current_a_ * options_.actuator.force_constant_n_per_a);
+  set_state(s_sensor_, Quantise(truth_.friction_force_n + noise * s.force_noise_n * normal_(rng_),
+                                s.force_quantum_n));
+  set_state(s_tip_, Quantise(tip_true + noise * s.tip_noise_mm * normal_(rng_), s.tip_quantum_mm));
+  set_state(s_fault_, faults_);
+}
+
+void SimulatedCatheter::DoWrite(double, double dt_s) {
+  const ActuatorParams& a = options_.actuator;
+  double force_cmd = command(c_force_);
+  if (!std::isfinite(force_cmd)) {  // the amplifier ignores a non-finite command
+    force_cmd = 0.0;
+    faults_ += 1.0;
+  }
+  const double current_cmd =
+      std::clamp(force_cmd / a.force_constant_n_per_a, -a.current_limit_a, a.current_limit_a);
+  const double h = dt_s / options_.substeps;
+  for (int i = 0; i < options_.substeps; ++i) Substep(h, current_cmd);
+}
+
+void SimulatedCatheter::Substep(double h, double current_cmd_a) {
+  const ActuatorParams& a = options_.actuator;
+  current_a_ += (current_cmd_a - current_a_) * (1.0 - std::exp(-h / a.current_time_constant_s));
+  double applied_n = current_a_ * a.force_constant_n_per_a;
+  const double half = 0.5 * a.travel_mm;
+  if (truth_.base_mm > half) applied_n -= a.end_stop_stiffness_n_per_mm * (truth_.base_mm - half);
+  if (truth_.base_mm < -half) applied_n -= a.end_stop_stiffness_n_per_mm * (truth_.base_mm + half);
+
+  PlantTruth& s = truth_;
+  const double accel_per_n = kMmPerM / a.moving_mass_kg;  // mm/s² per N
+  if (s.stuck) {
+    const double breakaway = model_.FrictionLevelN();
+    if (std::abs(applied_n) <= breakaway) {
+      s.friction_force_n = applied_n;  // static friction balances the drive
+      s.base_velocity_mm_s = 0.0;
+    } else {
+      s.stuck = false;
+      s.friction_force_n = std::copysign(breakaway, applied_n);
+      s.base_velocity_mm_s += h * (applied_n - s.friction_force_n) * accel_per_n;
+    }
+  } else {
+    const double v = s.base_velocity_mm_s;
+    s.friction_force_n = std::copysign(model_.FrictionMagnitudeN(std::abs(v)), v);
+    const double v_next = v + h * (applied_n - s.friction_force_n) * accel_per_n;
+    if (v != 0.0 && v_next * v <= 0.0) {  // sliding stopped within the step
+      s.base_velocity_mm_s = 0.0;
+      s.stuck = true;
+    } else {
+      s.base_velocity_mm_s = v_next;
+    }
+  }
+  s.base_mm += h * s.base_velocity_mm_s;
+  s.drive_mm = model_.DriveMm(s.base_mm, s.friction_force_n);
+  s.tip_mm = model_.StepTip(s.tip_mm, s.drive_mm, h);
+  tip_history_.Push(s.tip_mm);
+}
+
+}  // namespace echoservo::hw

@@ -1,0 +1,125 @@
+#include "hw/transmission_model.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <stdexcept>
+
+namespace echoservo::hw {
+
+TransmissionModel::TransmissionModel(const EffectRegistry& registry,
+                                     const std::vector<std::string>& effects,
+                                     const CatheterConfig& config)
+    : config_(config) {
+  config_.Validate();
+  for (const std::string& name : effects) {
+    if (HasEffect(name)) throw std::invalid_argument("effect '" + name + "' listed twice");
+    effects_.push_back(registry.Create(name));
+    names_.push_back(name);
+    offsets_.push_back(params_.size());
+    for (const ParameterSpec& spec : effects_.back()->parameters()) {
+      info_.push_back({name + "." + spec.name, effects_.size() - 1, spec});
+      params_.push_back(spec.default_value);
+    }
+  }
+  context_ = EffectContext::From(config_);
+  Refresh();
+}
+
+TransmissionModel::TransmissionModel(TransmissionModel&&) noexcept = default;
+TransmissionModel& TransmissionModel::operator=(TransmissionModel&&) noexcept = default;
+TransmissionModel::~TransmissionModel() = default;
+
+bool TransmissionModel::HasEffect(std::string_view name) const {
+  return std::find(names_.begin(), names_.end(), name) != names_.end();
+}
+
+void TransmissionModel::set_config(const CatheterConfig& config) {
+  config.Validate();
+  config_ = config;
+  context_ = EffectContext::From(config_);
+  Refresh();
+}
+
+void TransmissionModel::set_parameters(const std::vector<double>& values) {
+  if (values.size() != params_.size()) {
+    throw std::invalid_argument("model parameters: expected " + std::to_string(params_.size()) +
+                                " values, got " + std::to_string(values.size()));
+  }
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    const ParameterSpec& s = info_[i].spec;
+    if (!std::isfinite(values[i]) || values[i] < s.lower || values[i] > s.upper) {
+      throw std::invalid_argument("model parameter '" + info_[i].qualified_name + "' = " +
+                                  std::to_string(values[i]) + " is outside [" +
+                                  std::to_string(s.lower) + ", " + std::to_string(s.upper) + "] " +
+                                  s.unit);
+    }
+  }
+  params_ = values;
+  Refresh();
+}
+
+void TransmissionModel::SetParameter(std::string_view name, double value) {
+  std::vector<double> values = params_;
+  for (std::size_t i = 0; i < info_.size(); ++i) {
+    if (info_[i].qualified_name == name) {
+      values[i] = value;
+      set_parameters(values);
+      return;
+    }
+  }
+  throw std::invalid_argument("unknown model parameter '" + std::string(name) +
+                              "' (expected <effect>.<parameter> of an effect in the model)");
+}
+
+double TransmissionModel::GetParameter(std::string_view name) const {
+  for (std::size_t i = 0; i < info_.size(); ++i) {
+    if (info_[i].qualified_name == name) return params_[i];
+  }
+  throw std::invalid_argument("unknown model parameter '" + std::string(name) + "'");
+}
+
+double TransmissionModel::FrictionMagnitudeN(double speed_mm_s) const {
+  double sum = 0.0;
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    sum += effects_[e]->FrictionMagnitudeN(speed_mm_s, context_, params_.data() + offsets_[e]);
+  }
+  return sum * friction_scale_;
+}
+
+double TransmissionModel::DriveMm(double base_mm, double friction_force_n) const {
+  double drive = base_mm;
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    drive += effects_[e]->DriveOffsetMm(friction_force_n, context_, params_.data() + offsets_[e]);
+  }
+  return drive;
+}
+
+double TransmissionModel::StepTip(double tip_mm, double drive_mm, double dt_s) const {
+  const double half = 0.5 * width_mm_;
+  const double target = std::clamp(tip_mm, drive_mm - half, drive_mm + half);
+  if (tau_s_ <= 0.0) return target;
+  return tip_mm + (target - tip_mm) * (1.0 - std::exp(-dt_s / tau_s_));
+}
+
+void TransmissionModel::Refresh() {
+  friction_scale_ = 1.0;
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    friction_scale_ *= effects_[e]->FrictionScale(context_, params_.data() + offsets_[e]);
+  }
+  friction_level_n_ = FrictionMagnitudeN(0.0);
+  width_mm_ = 0.0;
+  tau_s_ = 0.0;
+  delay_s_ = 0.0;
+  scale_ = 1.0;
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    const double* p = params_.data() + offsets_[e];
+    width_mm_ = effects_[e]->BacklashWidthMm(width_mm_, friction_level_n_, context_, p);
+    tau_s_ = std::max(tau_s_, effects_[e]->TraversalTimeConstantS(p));
+    delay_s_ += effects_[e]->SensorDelayS(p);
+    scale_ *= effects_[e]->SensorScale(p);
+  }
+  assert(width_mm_ >= 0.0 && friction_scale_ >= 0.0);
+}
+
+}  // namespace echoservo::hw

@@ -1,0 +1,81 @@
+// The guidewire–sheath transmission as a composition of catalog effects.
+//
+// One model serves both the simulated plant (hw/simulated_catheter.h) and the model lab:
+// it holds the chosen effects, a flat parameter vector (each effect's block, named
+// "<effect>.<parameter>"), and the catheter geometry, and evaluates the pipeline
+//   friction magnitude(|v|) → drive = base + offsets(F) → deadzone width → tip update
+//   → tip sensor (delay, gain).
+// Units: mm, s, N. Positions are along the catheter axis in the base frame.
+#pragma once
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "hw/effect_registry.h"
+
+namespace echoservo::hw {
+
+struct ParameterInfo {
+  std::string qualified_name;  // "<effect>.<parameter>"
+  std::size_t effect_index;
+  ParameterSpec spec;
+};
+
+class TransmissionModel {
+ public:
+  // Throws std::invalid_argument for unknown effects or an invalid geometry.
+  TransmissionModel(const EffectRegistry& registry, const std::vector<std::string>& effects,
+                    const CatheterConfig& config);
+  TransmissionModel(TransmissionModel&&) noexcept;
+  TransmissionModel& operator=(TransmissionModel&&) noexcept;
+  ~TransmissionModel();
+
+  const std::vector<std::string>& effect_names() const { return names_; }
+  bool HasEffect(std::string_view name) const;
+  const CatheterConfig& config() const { return config_; }
+  void set_config(const CatheterConfig& config);
+
+  const std::vector<ParameterInfo>& parameter_info() const { return info_; }
+  const std::vector<double>& parameters() const { return params_; }
+  // Throws std::invalid_argument on a wrong size, a non-finite value or one outside the
+  // parameter's physical bounds (naming it).
+  void set_parameters(const std::vector<double>& values);
+  // `name` is "<effect>.<parameter>"; throws for an unknown name or an out-of-bounds value.
+  void SetParameter(std::string_view name, double value);
+  double GetParameter(std::string_view name) const;
+
+  // Friction magnitude (N, >= 0) at base speed |v| (mm/s), all terms and scales.
+  double FrictionMagnitudeN(double speed_mm_s) const;
+  // Breakaway friction (magnitude at rest), the "friction level" of the configuration.
+  double FrictionLevelN() const { return friction_level_n_; }
+  // Drive (guidewire tip-end) position for a base position and the signed friction force.
+  double DriveMm(double base_mm, double friction_force_n) const;
+  double BacklashWidthMm() const { return width_mm_; }
+  double TraversalTimeConstantS() const { return tau_s_; }
+  double SensorDelayS() const { return delay_s_; }
+  double SensorScale() const { return scale_; }
+
+  // One tip update over dt: the tip stays inside the band [drive - B/2, drive + B/2];
+  // outside it, it moves to the band edge at once or, with deadzone traversal, as a
+  // first-order lag with time constant τ.
+  double StepTip(double tip_mm, double drive_mm, double dt_s) const;
+
+ private:
+  void Refresh();
+  std::vector<std::string> names_;
+  std::vector<std::unique_ptr<Effect>> effects_;
+  std::vector<std::size_t> offsets_;
+  std::vector<ParameterInfo> info_;
+  std::vector<double> params_;
+  CatheterConfig config_;
+  EffectContext context_;
+  double friction_scale_ = 1.0;
+  double friction_level_n_ = 0.0;
+  double width_mm_ = 0.0;
+  double tau_s_ = 0.0;
+  double delay_s_ = 0.0;
+  double scale_ = 1.0;
+};
+
+}  // namespace echoservo::hw
