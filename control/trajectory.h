@@ -4,8 +4,8 @@
 // multi-harmonic model of the human mitral annulus along the ventricle's long axis
 // (docs/mitral_trajectory.md): a systolic excursion towards the apex, a fast early-
 // diastolic return, diastasis and an atrial kick, built from keyframes and truncated
-// to 10 harmonics; at 72 bpm and 14 mm peak to peak it peaks near 200 mm/s and
-// 3800 mm/s². Trajectories are known ahead of time, so compensators may look ahead.
+// to 10 harmonics; at 75 bpm and 15 mm peak to peak it peaks near 160 mm/s and
+// 3600 mm/s². Trajectories are known ahead of time, so compensators may look ahead.
 #pragma once
 
 #include <memory>
@@ -37,8 +37,8 @@ class SineTrajectory final : public Trajectory {
 };
 
 struct MitralOptions {
-  double heart_rate_bpm = 72.0;
-  double peak_to_peak_mm = 14.0;
+  double heart_rate_bpm = 75.0;
+  double peak_to_peak_mm = 15.0;
   int harmonics = 10;
 };
 

@@ -32,6 +32,17 @@ void ValidateOptions(const PlantOptions& o) {
   require(std::isfinite(a.travel_mm) && a.travel_mm > 0, "actuator.travel_mm");
   require(std::isfinite(a.end_stop_stiffness_n_per_mm) && a.end_stop_stiffness_n_per_mm > 0, "actuator.end_stop_stiffness_n_per_mm");
   require(o.substeps > 0 && o.substeps <= 1000, "substeps");
+  const SensorParams& s = o.sensors;
+  auto require_sensor = [](double v, const char* field) {
+    if (!(std::isfinite(v) && v >= 0.0)) {
+      throw std::invalid_argument(std::string("plant options: '") + field + "' must be finite and >= 0");
+    }
+  };
+  require_sensor(s.tip_noise_mm, "sensors.tip_noise_mm");
+  require_sensor(s.tip_quantum_mm, "sensors.tip_quantum_mm");
+  require_sensor(s.force_noise_n, "sensors.force_noise_n");
+  require_sensor(s.force_quantum_n, "sensors.force_quantum_n");
+  require_sensor(s.base_quantum_mm, "sensors.base_quantum_mm");
 }
 
 }  // namespace
@@ -40,7 +51,8 @@ SimulatedCatheter::SimulatedCatheter(PlantOptions options)
     : options_((ValidateOptions(options), std::move(options))),
       model_(MakeModel(options_)),
       tip_history_(1e-3 / options_.substeps, 0.1 + 1e-3),
-      rng_(options_.seed) {
+      rng_(options_.seed),
+      history_period_s_(1e-3 / options_.substeps) {
   s_base_ = AddStateInterface(std::string(iface::kBasePosition), "mm");
   s_vel_ = AddStateInterface(std::string(iface::kBaseVelocity), "mm/s");
   s_current_ = AddStateInterface(std::string(iface::kActuatorCurrent), "A");
@@ -63,6 +75,7 @@ void SimulatedCatheter::ResetTo(double base_mm) {
   truth_.tip_mm = truth_.drive_mm;
   current_a_ = 0.0;
   tip_history_.Reset(truth_.tip_mm);
+  since_push_s_ = 0.0;
 }
 
 void SimulatedCatheter::DoConfigure() { ResetTo(truth_.base_mm); }
@@ -76,8 +89,7 @@ double SimulatedCatheter::Quantise(double v, double q) const {
 void SimulatedCatheter::DoRead(double, double) {
   const SensorParams& s = options_.sensors;
   const double noise = options_.sensor_noise ? 1.0 : 0.0;
-  const double tip_true =
-      model_.SensorScale() * tip_history_.Delayed(model_.SensorDelayS());
+  const double tip_true = model_.SensorScale() * DelayedTip(model_.SensorDelayS());
   set_state(s_base_, Quantise(truth_.base_mm, s.base_quantum_mm));
   set_state(s_vel_, truth_.base_velocity_mm_s);
   set_state(s_current_, current_a_);
@@ -134,8 +146,29 @@ void SimulatedCatheter::Substep(double h, double current_cmd_a) {
   }
   s.base_mm += h * s.base_velocity_mm_s;
   s.drive_mm = model_.DriveMm(s.base_mm, s.friction_force_n);
+  const double tip_before = s.tip_mm;
   s.tip_mm = model_.StepTip(s.tip_mm, s.drive_mm, h);
-  tip_history_.Push(s.tip_mm);
+  RecordTip(tip_before, s.tip_mm, h);
+}
+
+void SimulatedCatheter::RecordTip(double tip_before_mm, double tip_after_mm, double h_s) {
+  // Push one sample per history period, linearly interpolated within this substep (with
+  // the 1 ms cycle, h equals the period and this pushes exactly the new tip).
+  double since = since_push_s_ + h_s;  // time from the last sample to the end of this substep
+  while (since >= history_period_s_ * (1.0 - 1e-9)) {
+    since -= history_period_s_;
+    const double at = std::clamp((h_s - since) / h_s, 0.0, 1.0);
+    tip_history_.Push(tip_before_mm + at * (tip_after_mm - tip_before_mm));
+  }
+  since_push_s_ = std::max(since, 0.0);
+}
+
+double SimulatedCatheter::DelayedTip(double delay_s) const {
+  // The newest history sample is since_push_s_ old; younger delays interpolate between
+  // it and the current tip.
+  if (delay_s >= since_push_s_) return tip_history_.Delayed(delay_s - since_push_s_);
+  const double newest = tip_history_.Delayed(0.0);
+  return truth_.tip_mm + (newest - truth_.tip_mm) * (delay_s / since_push_s_);
 }
 
 }  // namespace echoservo::hw

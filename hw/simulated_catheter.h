@@ -84,6 +84,11 @@ class SimulatedCatheter final : public HardwareInterface {
  private:
   void Substep(double h_s, double current_cmd_a);
   double Quantise(double v, double q) const;
+  // The tip history is sampled every history_period_s_ of simulated time whatever the
+  // substep h (write() may be called with any dt): RecordTip resamples the tip between
+  // substeps, DelayedTip reads it `delay_s` before now.
+  void RecordTip(double tip_before_mm, double tip_after_mm, double h_s);
+  double DelayedTip(double delay_s) const;
 
   PlantOptions options_;
   TransmissionModel model_;
@@ -91,6 +96,8 @@ class SimulatedCatheter final : public HardwareInterface {
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
   PlantTruth truth_;
+  double history_period_s_;
+  double since_push_s_ = 0.0;  // simulated time since the newest tip history sample
   double current_a_ = 0.0;
   double faults_ = 0.0;
   std::size_t s_base_, s_vel_, s_current_, s_force_, s_sensor_, s_tip_, s_fault_, c_force_;

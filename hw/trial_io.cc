@@ -1,0 +1,545 @@
+// Reader and writer of the trial format (docs/trial_format.md).
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <cstddef>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <unordered_set>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "hw/trial.h"
+
+namespace echoservo::hw {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::ordered_json;  // keeps key order, so `meta` stays as written
+
+constexpr std::array<std::string_view, 5> kRequiredColumns = {"t", "base_cmd", "base", "tip",
+                                                              "force"};
+constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
+constexpr std::size_t kMaxQuotedChars = 32;  // longer offending fields are truncated
+constexpr int kMaxJsonDepth = 64;            // guards the recursive JSON serialiser
+constexpr std::size_t kMinSamples = 2;
+
+[[noreturn]] void Fail(const fs::path& file, const std::string& why) {
+  throw TrialFormatError(file.string() + ": " + why);
+}
+
+[[noreturn]] void FailLine(const fs::path& file, std::size_t line, const std::string& why) {
+  Fail(file, "line " + std::to_string(line) + ": " + why);
+}
+
+std::string_view Trim(std::string_view s) {
+  constexpr std::string_view kSpace = " \t\r\n\v\f";
+  const std::size_t b = s.find_first_not_of(kSpace);
+  if (b == std::string_view::npos) return {};
+  const std::size_t e = s.find_last_not_of(kSpace);
+  return s.substr(b, e - b + 1);
+}
+
+// `"text"` with non-printable bytes escaped and long text truncated, for error messages.
+std::string Quote(std::string_view s) {
+  std::string out = "\"";
+  const std::size_t n = std::min(s.size(), kMaxQuotedChars);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += static_cast<char>(c);
+    } else if (c < 0x20 || c >= 0x7F) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02X", static_cast<unsigned>(c));
+      out += buf;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  out += '"';
+  if (s.size() > n) out += "... (" + std::to_string(s.size()) + " bytes, truncated)";
+  return out;
+}
+
+enum class NumberStatus { kOk, kNotANumber, kNonFinite, kOutOfRange };
+
+// Locale-independent strict parse: the whole (trimmed) field must be one decimal number.
+NumberStatus ParseNumber(std::string_view s, double& out) {
+  if (s.size() >= 2 && s.front() == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);
+  if (s.empty()) return NumberStatus::kNotANumber;
+  const char* end = s.data() + s.size();
+  const auto [ptr, ec] = std::from_chars(s.data(), end, out, std::chars_format::general);
+  if (ec == std::errc::result_out_of_range && ptr == end) return NumberStatus::kOutOfRange;
+  if (ec != std::errc() || ptr != end) return NumberStatus::kNotANumber;
+  if (!std::isfinite(out)) return NumberStatus::kNonFinite;
+  return NumberStatus::kOk;
+}
+
+// Shortest decimal text that parses back to exactly `v` (std::to_chars round-trip form).
+void AppendNumber(std::string& out, double v) {
+  char buf[64];
+  const auto [ptr, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  if (ec != std::errc()) throw std::runtime_error("trial writer: cannot format a number");
+  out.append(buf, ptr);
+}
+
+std::string FormatNumber(double v) {
+  std::string s;
+  AppendNumber(s, v);
+  return s;
+}
+
+void RequireRegularFile(const fs::path& path, const std::string& what) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) Fail(path, what + " not found");
+  if (!fs::is_regular_file(st)) Fail(path, what + " is not a regular file");
+}
+
+fs::path SiblingJson(const fs::path& csv_path) {
+  fs::path json = csv_path;
+  json.replace_extension(".json");
+  return json;
+}
+
+// ----------------------------------------------------------------------------- CSV
+
+struct CsvColumns {
+  std::vector<std::string> names;           // in file order
+  std::vector<std::vector<double>> values;  // one vector per column, file order
+};
+
+CsvColumns ReadCsv(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) Fail(path, "cannot open file for reading");
+
+  CsvColumns csv;
+  std::vector<std::string_view> fields;  // sized from the header, i.e. from bytes actually read
+  std::string line;
+  std::size_t line_no = 0;
+  bool have_header = false;
+  std::size_t t_col = 0;
+  std::optional<std::size_t> blank_line;  // first blank line after the header, if any
+  std::size_t prev_line_no = 0;            // line of the previous sample
+
+  while (std::getline(in, line)) {
+    ++line_no;
+    std::string_view view = line;
+    if (line_no == 1 && view.starts_with(kUtf8Bom)) view.remove_prefix(kUtf8Bom.size());
+    if (!view.empty() && view.back() == '\r') view.remove_suffix(1);
+
+    if (!have_header) {
+      if (Trim(view).empty()) {
+        // Blank lines may only trail the data; a leading one means no header line.
+        continue;
+      }
+      if (line_no != 1) {
+        FailLine(path, line_no, "the header line must be the first line (found blank lines before it)");
+      }
+      std::unordered_set<std::string_view> seen;  // views into `line`, alive for this block
+      std::size_t pos = 0;
+      while (true) {
+        const std::size_t comma = view.find(',', pos);
+        const std::string_view name =
+            Trim(view.substr(pos, comma == std::string_view::npos ? std::string_view::npos : comma - pos));
+        const std::size_t index = csv.names.size() + 1;
+        if (name.empty()) {
+          FailLine(path, line_no, "column " + std::to_string(index) + " of the header has an empty name");
+        }
+        if (!seen.insert(name).second) {
+          FailLine(path, line_no, "duplicate column name " + Quote(name) + " (column " +
+                                      std::to_string(index) + ")");
+        }
+        csv.names.emplace_back(name);
+        if (comma == std::string_view::npos) break;
+        pos = comma + 1;
+      }
+      std::string missing;
+      std::size_t n_missing = 0;
+      for (std::string_view req : kRequiredColumns) {
+        if (!seen.contains(req)) {
+          missing += (n_missing++ ? ", '" : "'") + std::string(req) + "'";
+        }
+      }
+      if (n_missing > 0) {
+        FailLine(path, line_no, std::string(n_missing == 1 ? "missing required column " : "missing required columns ") +
+                                    missing + " (required: t,base_cmd,base,tip,force, in any order)");
+      }
+      t_col = static_cast<std::size_t>(
+          std::find(csv.names.begin(), csv.names.end(), "t") - csv.names.begin());
+      csv.values.resize(csv.names.size());
+      fields.resize(csv.names.size());
+      have_header = true;
+      continue;
+    }
+
+    if (Trim(view).empty()) {
+      if (!blank_line) blank_line = line_no;
+      continue;
+    }
+    if (blank_line) {
+      FailLine(path, *blank_line, "empty line inside the data (only trailing empty lines are allowed)");
+    }
+
+    // Split without allocating per field; stop counting into `fields` once it is full.
+    std::size_t count = 0;
+    std::size_t pos = 0;
+    while (true) {
+      const std::size_t comma = view.find(',', pos);
+      if (count < fields.size()) {
+        fields[count] =
+            view.substr(pos, comma == std::string_view::npos ? std::string_view::npos : comma - pos);
+      }
+      ++count;
+      if (comma == std::string_view::npos) break;
+      pos = comma + 1;
+    }
+    if (count != fields.size()) {
+      FailLine(path, line_no, "expected " + std::to_string(fields.size()) + " fields (as in the header), found " +
+                                  std::to_string(count));
+    }
+
+    for (std::size_t c = 0; c < fields.size(); ++c) {
+      const std::string_view field = Trim(fields[c]);
+      double v = 0.0;
+      const NumberStatus status = ParseNumber(field, v);
+      if (status != NumberStatus::kOk) {
+        const std::string column = "column '" + csv.names[c] + "': ";
+        switch (status) {
+          case NumberStatus::kNonFinite:
+            FailLine(path, line_no, column + "NaN or infinity is not allowed: " + Quote(field));
+          case NumberStatus::kOutOfRange:
+            FailLine(path, line_no, column + "number out of the range of a double: " + Quote(field));
+          default:
+            FailLine(path, line_no, column + "not a number: " + Quote(field));
+        }
+      }
+      if (c == t_col && !csv.values[c].empty() && !(v > csv.values[c].back())) {
+        FailLine(path, line_no, "column 't': times must be strictly increasing (t = " + FormatNumber(v) +
+                                    " s is not after t = " + FormatNumber(csv.values[c].back()) +
+                                    " s on line " + std::to_string(prev_line_no) + ")");
+      }
+      csv.values[c].push_back(v);
+    }
+    prev_line_no = line_no;
+  }
+  if (in.bad()) Fail(path, "read error");
+  if (!have_header) Fail(path, "empty file (no header line)");
+  const std::size_t samples = csv.values.front().size();
+  if (samples < kMinSamples) {
+    Fail(path, "has " + std::to_string(samples) + " sample(s); a trial needs at least " +
+                   std::to_string(kMinSamples));
+  }
+  return csv;
+}
+
+// ---------------------------------------------------------------------------- JSON
+
+std::string ReadWholeFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) Fail(path, "cannot open file for reading");
+  std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  if (in.bad()) Fail(path, "read error");
+  return text;
+}
+
+Json ParseJsonText(const fs::path& path, const std::string& text) {
+  // Reject absurd nesting before it reaches the (recursive) serialiser.
+  const Json::parser_callback_t depth_guard = [&path](int depth, Json::parse_event_t, Json&) {
+    if (depth > kMaxJsonDepth) {
+      Fail(path, "JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
+    }
+    return true;
+  };
+  try {
+    return Json::parse(text, depth_guard);
+  } catch (const Json::exception& e) {
+    Fail(path, std::string("JSON parse error: ") + e.what());
+  }
+}
+
+double RequireNumber(const fs::path& path, const Json& obj, const std::string& key,
+                     const std::string& display) {
+  const auto it = obj.find(key);
+  if (it == obj.end()) Fail(path, "missing key '" + display + "'");
+  if (!it->is_number()) {
+    Fail(path, "key '" + display + "' must be a number, got " + std::string(it->type_name()));
+  }
+  return it->get<double>();
+}
+
+void ReadJson(const fs::path& path, Trial& trial) {
+  const Json j = ParseJsonText(path, ReadWholeFile(path));
+  if (!j.is_object()) {
+    Fail(path, "the top level must be a JSON object, got " + std::string(j.type_name()));
+  }
+  CatheterConfig& cfg = trial.config;
+  cfg.sheath_id_mm = RequireNumber(path, j, "sheath_id_mm", "sheath_id_mm");
+  cfg.guidewire_od_mm = RequireNumber(path, j, "guidewire_od_mm", "guidewire_od_mm");
+  cfg.tip_load_n = RequireNumber(path, j, "tip_load_n", "tip_load_n");
+
+  const auto bends = j.find("bends");
+  if (bends == j.end()) Fail(path, "missing key 'bends'");
+  if (!bends->is_array()) {
+    Fail(path, "key 'bends' must be a list, got " + std::string(bends->type_name()));
+  }
+  cfg.bends.clear();
+  for (std::size_t i = 0; i < bends->size(); ++i) {
+    const Json& b = (*bends)[i];
+    const std::string key = "bends[" + std::to_string(i) + "]";
+    if (!b.is_object()) {
+      Fail(path, "key '" + key + "' must be an object, got " + std::string(b.type_name()));
+    }
+    for (const auto& [k, v] : b.items()) {
+      if (k != "angle_deg" && k != "radius_mm") {
+        Fail(path, "key '" + key + "." + k + "' is unknown (a bend has only angle_deg and radius_mm)");
+      }
+    }
+    Bend bend;
+    bend.angle_deg = RequireNumber(path, b, "angle_deg", key + ".angle_deg");
+    bend.radius_mm = RequireNumber(path, b, "radius_mm", key + ".radius_mm");
+    cfg.bends.push_back(bend);
+  }
+
+  trial.meta_json = "{}";
+  if (const auto meta = j.find("meta"); meta != j.end()) {
+    if (!meta->is_object()) {
+      Fail(path, "key 'meta' must be an object, got " + std::string(meta->type_name()));
+    }
+    trial.meta_json = meta->dump();
+  }
+
+  for (const auto& [k, v] : j.items()) {
+    if (k != "sheath_id_mm" && k != "guidewire_od_mm" && k != "bends" && k != "tip_load_n" &&
+        k != "meta") {
+      trial.warnings.push_back(path.string() + ": ignoring unknown key '" + k + "'");
+    }
+  }
+
+  try {
+    cfg.Validate(path.string());
+  } catch (const std::invalid_argument& e) {
+    throw TrialFormatError(e.what());
+  }
+}
+
+// -------------------------------------------------------------------------- writer
+
+[[noreturn]] void FailWrite(const fs::path& file, const std::string& why) {
+  throw TrialFormatError(file.string() + ": cannot write trial: " + why);
+}
+
+void ValidateForWrite(const fs::path& csv_path, const fs::path& json_path, const Trial& trial) {
+  const std::size_t n = trial.t_s.size();
+  const std::pair<const char*, const std::vector<double>*> required[] = {
+      {"t", &trial.t_s},       {"base_cmd", &trial.base_cmd_mm}, {"base", &trial.base_mm},
+      {"tip", &trial.tip_mm}, {"force", &trial.force_n}};
+  if (trial.extra_names.size() != trial.extra_columns.size()) {
+    FailWrite(csv_path, std::to_string(trial.extra_names.size()) + " extra column names but " +
+                            std::to_string(trial.extra_columns.size()) + " extra columns");
+  }
+  std::vector<std::pair<std::string, const std::vector<double>*>> columns;
+  std::unordered_set<std::string_view> seen;
+  for (const auto& [name, col] : required) {
+    columns.emplace_back(name, col);
+    seen.insert(name);
+  }
+  for (std::size_t i = 0; i < trial.extra_names.size(); ++i) {
+    const std::string& name = trial.extra_names[i];
+    if (name.empty() || Trim(name) != name || name.find_first_of(",\r\n") != std::string::npos ||
+        name.starts_with(kUtf8Bom)) {
+      FailWrite(csv_path, "extra column name " + Quote(name) +
+                              " must be non-empty, without commas, line breaks or surrounding whitespace");
+    }
+    if (!seen.insert(name).second) FailWrite(csv_path, "duplicate column name " + Quote(name));
+    columns.emplace_back(name, &trial.extra_columns[i]);
+  }
+  if (n < kMinSamples) {
+    FailWrite(csv_path, "has " + std::to_string(n) + " sample(s); a trial needs at least " +
+                            std::to_string(kMinSamples));
+  }
+  for (const auto& [name, col] : columns) {
+    if (col->size() != n) {
+      FailWrite(csv_path, "column '" + name + "' has " + std::to_string(col->size()) +
+                              " samples but 't' has " + std::to_string(n));
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!std::isfinite((*col)[i])) {
+        FailWrite(csv_path, "column '" + name + "' sample " + std::to_string(i) + " is not finite");
+      }
+    }
+  }
+  for (std::size_t i = 1; i < n; ++i) {
+    if (!(trial.t_s[i] > trial.t_s[i - 1])) {
+      FailWrite(csv_path, "column 't' is not strictly increasing at sample " + std::to_string(i) +
+                              " (t = " + FormatNumber(trial.t_s[i]) + " after " +
+                              FormatNumber(trial.t_s[i - 1]) + ")");
+    }
+  }
+  try {
+    trial.config.Validate(json_path.string());
+  } catch (const std::invalid_argument& e) {
+    throw TrialFormatError(e.what());
+  }
+}
+
+// Writes `text` to `path` via a temporary file and a rename, so readers never see half a file.
+void WriteFileAtomically(const fs::path& path, const std::string& text) {
+  fs::path tmp = path;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) FailWrite(path, "cannot open " + tmp.string() + " for writing");
+    out.write(text.data(), static_cast<std::streamsize>(text.size()));
+    out.flush();
+    if (!out) {
+      std::error_code ignored;
+      fs::remove(tmp, ignored);
+      FailWrite(path, "write error");
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    std::error_code ignored;
+    fs::remove(tmp, ignored);
+    FailWrite(path, "cannot rename " + tmp.string() + ": " + ec.message());
+  }
+}
+
+}  // namespace
+
+Trial ReadTrial(const fs::path& csv_path) {
+  const fs::path json_path = SiblingJson(csv_path);
+  RequireRegularFile(csv_path, "trial CSV");
+  RequireRegularFile(json_path, "sibling JSON of " + csv_path.filename().string());
+
+  Trial trial;
+  trial.name = csv_path.stem().string();
+  CsvColumns csv = ReadCsv(csv_path);
+  for (std::size_t c = 0; c < csv.names.size(); ++c) {
+    const std::string& name = csv.names[c];
+    std::vector<double>& values = csv.values[c];
+    if (name == "t") {
+      trial.t_s = std::move(values);
+    } else if (name == "base_cmd") {
+      trial.base_cmd_mm = std::move(values);
+    } else if (name == "base") {
+      trial.base_mm = std::move(values);
+    } else if (name == "tip") {
+      trial.tip_mm = std::move(values);
+    } else if (name == "force") {
+      trial.force_n = std::move(values);
+    } else {
+      trial.extra_names.push_back(name);
+      trial.extra_columns.push_back(std::move(values));
+    }
+  }
+  ReadJson(json_path, trial);
+  return trial;
+}
+
+std::vector<Trial> ReadDataset(const fs::path& dir) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(dir, ec);
+  if (ec || !fs::exists(st)) Fail(dir, "dataset folder not found");
+  if (!fs::is_directory(st)) Fail(dir, "dataset path is not a directory");
+
+  std::vector<fs::path> csvs;
+  fs::directory_iterator it(dir, ec);
+  if (ec) Fail(dir, "cannot list dataset folder: " + ec.message());
+  for (; it != fs::directory_iterator(); it.increment(ec)) {
+    if (ec) Fail(dir, "cannot list dataset folder: " + ec.message());
+    const fs::path& p = it->path();
+    std::error_code type_ec;
+    if (p.extension() == ".csv" && it->is_regular_file(type_ec)) csvs.push_back(p);
+  }
+  if (ec) Fail(dir, "cannot list dataset folder: " + ec.message());
+  if (csvs.empty()) Fail(dir, "dataset folder holds no trials (no *.csv files)");
+  std::sort(csvs.begin(), csvs.end(),
+            [](const fs::path& a, const fs::path& b) { return a.filename() < b.filename(); });
+
+  for (const fs::path& csv : csvs) {
+    std::error_code json_ec;
+    if (!fs::is_regular_file(SiblingJson(csv), json_ec)) {
+      Fail(csv, "has no sibling JSON " + SiblingJson(csv).filename().string() + " in the dataset folder");
+    }
+  }
+  std::vector<Trial> trials;
+  for (const fs::path& csv : csvs) trials.push_back(ReadTrial(csv));
+  return trials;
+}
+
+void WriteTrial(const fs::path& dir, const Trial& trial) {
+  const std::string& name = trial.name;
+  if (name.empty() || name == "." || name == ".." ||
+      name.find_first_of(std::string_view("/\\\0", 3)) != std::string::npos) {
+    throw TrialFormatError((dir / "").string() + ": cannot write trial: invalid trial name " +
+                           Quote(name) + " (must be a plain file stem)");
+  }
+  const fs::path csv_path = dir / (name + ".csv");
+  const fs::path json_path = dir / (name + ".json");
+  ValidateForWrite(csv_path, json_path, trial);
+
+  Json meta = Json::object();
+  if (!Trim(trial.meta_json).empty()) {
+    try {
+      meta = Json::parse(trial.meta_json);
+    } catch (const Json::exception& e) {
+      FailWrite(json_path, std::string("meta_json is not valid JSON: ") + e.what());
+    }
+    if (!meta.is_object()) {
+      FailWrite(json_path, "meta_json must be a JSON object, got " + std::string(meta.type_name()));
+    }
+  }
+
+  Json j = Json::object();
+  j["sheath_id_mm"] = trial.config.sheath_id_mm;
+  j["guidewire_od_mm"] = trial.config.guidewire_od_mm;
+  j["bends"] = Json::array();
+  for (const Bend& b : trial.config.bends) {
+    Json jb = Json::object();
+    jb["angle_deg"] = b.angle_deg;
+    jb["radius_mm"] = b.radius_mm;
+    j["bends"].push_back(std::move(jb));
+  }
+  j["tip_load_n"] = trial.config.tip_load_n;
+  if (!meta.empty()) j["meta"] = std::move(meta);
+
+  std::string csv = "t,base_cmd,base,tip,force";
+  for (const std::string& extra : trial.extra_names) csv += "," + extra;
+  csv += '\n';
+  for (std::size_t i = 0; i < trial.size(); ++i) {
+    AppendNumber(csv, trial.t_s[i]);
+    for (const std::vector<double>* col :
+         {&trial.base_cmd_mm, &trial.base_mm, &trial.tip_mm, &trial.force_n}) {
+      csv += ',';
+      AppendNumber(csv, (*col)[i]);
+    }
+    for (const std::vector<double>& col : trial.extra_columns) {
+      csv += ',';
+      AppendNumber(csv, col[i]);
+    }
+    csv += '\n';
+  }
+
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) FailWrite(dir, "cannot create directory: " + ec.message());
+  // JSON first: a crash between the two leaves an orphan JSON, which dataset readers ignore,
+  // rather than a CSV without its sibling, which they reject.
+  WriteFileAtomically(json_path, j.dump(2) + "\n");
+  WriteFileAtomically(csv_path, csv);
+}
+
+}  // namespace echoservo::hw

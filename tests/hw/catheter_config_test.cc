@@ -28,7 +28,7 @@ TEST(CatheterConfig, RejectsGuidewireWiderThanSheath) {
 }
 
 TEST(CatheterConfig, RejectsNonPhysicalNumbers) {
-  for (double bad : {0.0, -1.0, std::nan(""), INFINITY}) {
+  for (double bad : {0.0, -1.0, std::nan(""), HUGE_VAL}) {
     CatheterConfig c = CatheterConfig::SeedEvaluation();
     c.sheath_id_mm = bad;
     EXPECT_THROW(c.Validate(), std::invalid_argument) << bad;

@@ -1,0 +1,27 @@
+// Plant configurations that reproduce Kesner & Howe's bench (docs/seed_calibration.md).
+//
+// `SeedCalibratedPlant` is the catheter of the seed's tracking experiments with the
+// effects and parameters chosen so that the simulated figures match the published
+// ones (uncompensated and iteratively compensated tip MAE on the 1 Hz sine and the
+// mitral trajectory): Coulomb + viscous friction with a rubber seal at the tip (a tip
+// load), capstan amplification over the bends, the geometric deadzone, axial
+// compliance of the guidewire and a finite deadzone traversal time.
+// `SeedModelPlant` has only the seed's own model effects (coulomb, viscous, backlash).
+#pragma once
+
+#include <cstdint>
+
+#include "hw/simulated_catheter.h"
+
+namespace echoservo::hw {
+
+// Normal force of the rubber seal at the tip of the seed's evaluation catheter (N).
+inline constexpr double kSeedSealLoadN = 1.0;
+
+PlantOptions SeedCalibratedPlant(const CatheterConfig& config, std::uint64_t seed = 1);
+PlantOptions SeedModelPlant(const CatheterConfig& config, std::uint64_t seed = 1);
+
+// The seed's evaluation catheter with its tip seal.
+CatheterConfig SeedTrackingCatheter();
+
+}  // namespace echoservo::hw
