@@ -95,6 +95,7 @@ void AdaptiveInverse::Reset() {
   p_(0, 0) = options_.initial_uncertainty;
   p_(1, 1) = options_.initial_uncertainty * 1e-4;  // lag: (10 ms)² scale
   p_(2, 2) = options_.initial_uncertainty;
+  p0_trace_ = p_.trace();
   last_switch_s_ = -1e9;
 }
 
@@ -121,6 +122,11 @@ BaseCommand AdaptiveInverse::DoCalc(const CompensatorInput& in) {
       const Eigen::Vector3d gain = p_phi / denom;
       theta_ += gain * error;
       p_ = (p_ - gain * p_phi.transpose()) / options_.forgetting;
+      p_ = 0.5 * (p_ + p_.transpose());
+      // Bound the covariance: with forgetting, directions the motion does not excite
+      // grow without limit (wind-up) and the next excitation then throws the estimates.
+      const double trace = p_.trace();
+      if (trace > p0_trace_) p_ *= p0_trace_ / trace;
       theta_(0) = std::max(theta_(0), 0.0);
       theta_(1) = std::clamp(theta_(1), -0.1, 0.2);
     }

@@ -137,6 +137,7 @@ class AdaptiveInverse final : public BacklashCompensator {
   DirectionTracker direction_;
   Eigen::Vector3d theta_;  // [W, τ, o]
   Eigen::Matrix3d p_;
+  double p0_trace_ = 0.0;
   double last_switch_s_ = -1e9;
 };
 

@@ -87,10 +87,79 @@ MitralTrajectory::MitralTrajectory(MitralOptions options) {
   motion_.offset_mm = gain * mid_harmonic;
 }
 
-std::unique_ptr<Trajectory> MakeTrajectory(const std::string& name) {
-  if (name == "sine") return std::make_unique<SineTrajectory>(5.0, 1.0);
-  if (name == "mitral") return std::make_unique<MitralTrajectory>();
-  throw std::invalid_argument("unknown trajectory '" + name + "' (expected sine or mitral)");
+TriangleTrajectory::TriangleTrajectory(double amplitude_mm, double speed_mm_s)
+    : amplitude_mm_(amplitude_mm), speed_mm_s_(speed_mm_s) {
+  if (!(std::isfinite(amplitude_mm) && amplitude_mm > 0.0 && std::isfinite(speed_mm_s) &&
+        speed_mm_s > 0.0)) {
+    throw std::invalid_argument("triangle trajectory: amplitude and speed must be finite and > 0");
+  }
+}
+
+MotionSample TriangleTrajectory::Evaluate(double t_s) const {
+  const double a = amplitude_mm_;
+  double u = std::fmod(t_s * speed_mm_s_, 4.0 * a);
+  if (u < 0.0) u += 4.0 * a;
+  if (u < a) return {u, speed_mm_s_, 0.0};
+  if (u < 3.0 * a) return {2.0 * a - u, -speed_mm_s_, 0.0};
+  return {u - 4.0 * a, speed_mm_s_, 0.0};
+}
+
+namespace {
+
+std::vector<double> SpecNumbers(const std::string& spec, std::size_t first_colon) {
+  std::vector<double> values;
+  std::size_t start = first_colon + 1;
+  while (start <= spec.size()) {
+    const std::size_t end = std::min(spec.find(':', start), spec.size());
+    const std::string field = spec.substr(start, end - start);
+    std::size_t used = 0;
+    double v = 0.0;
+    try {
+      v = std::stod(field, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (field.empty() || used != field.size() || !std::isfinite(v)) {
+      throw std::invalid_argument("trajectory '" + spec + "': '" + field + "' is not a number");
+    }
+    values.push_back(v);
+    start = end + 1;
+  }
+  return values;
+}
+
+}  // namespace
+
+std::unique_ptr<Trajectory> MakeTrajectory(const std::string& spec) {
+  const std::size_t colon = spec.find(':');
+  const std::string kind = spec.substr(0, colon);
+  const std::vector<double> args =
+      colon == std::string::npos ? std::vector<double>{} : SpecNumbers(spec, colon);
+  auto need = [&](std::size_t n, const char* form) {
+    if (args.size() != n && !args.empty()) {
+      throw std::invalid_argument("trajectory '" + spec + "': expected " + form);
+    }
+  };
+  if (kind == "sine") {
+    need(2, "sine:AMP_MM:FREQ_HZ");
+    return args.empty() ? std::make_unique<SineTrajectory>(5.0, 1.0)
+                        : std::make_unique<SineTrajectory>(args[0], args[1]);
+  }
+  if (kind == "triangle") {
+    if (args.size() != 2) throw std::invalid_argument("trajectory '" + spec + "': expected triangle:AMP_MM:SPEED_MM_S");
+    return std::make_unique<TriangleTrajectory>(args[0], args[1]);
+  }
+  if (kind == "mitral") {
+    need(2, "mitral:BPM:P2P_MM");
+    MitralOptions o;
+    if (!args.empty()) {
+      o.heart_rate_bpm = args[0];
+      o.peak_to_peak_mm = args[1];
+    }
+    return std::make_unique<MitralTrajectory>(o);
+  }
+  throw std::invalid_argument("unknown trajectory '" + spec +
+                              "' (expected sine, sine:A:F, triangle:A:V, mitral or mitral:BPM:P2P)");
 }
 
 }  // namespace echoservo::control

@@ -36,6 +36,21 @@ class SineTrajectory final : public Trajectory {
   double frequency_hz_;
 };
 
+// Constant-speed triangle wave between ±amplitude (the probing motion of calibration
+// and of the friction experiment); starts at 0 moving up.
+class TriangleTrajectory final : public Trajectory {
+ public:
+  // Throws std::invalid_argument for non-finite or non-positive amplitude/speed.
+  TriangleTrajectory(double amplitude_mm, double speed_mm_s);
+  MotionSample Evaluate(double t_s) const override;
+  std::string name() const override { return "triangle"; }
+  double period_s() const { return 4.0 * amplitude_mm_ / speed_mm_s_; }
+
+ private:
+  double amplitude_mm_;
+  double speed_mm_s_;
+};
+
 struct MitralOptions {
   double heart_rate_bpm = 75.0;
   double peak_to_peak_mm = 15.0;
@@ -54,7 +69,9 @@ class MitralTrajectory final : public Trajectory {
   estimation::FourierMotion motion_;
 };
 
-// "sine" (5 mm, 1 Hz) or "mitral" (defaults); throws std::invalid_argument otherwise.
-std::unique_ptr<Trajectory> MakeTrajectory(const std::string& name);
+// Builds a trajectory from a spec: "sine" (5 mm, 1 Hz), "sine:AMP_MM:FREQ_HZ",
+// "triangle:AMP_MM:SPEED_MM_S", "mitral" (75 bpm, 15 mm) or "mitral:BPM:P2P_MM".
+// Throws std::invalid_argument naming the spec and the bad field.
+std::unique_ptr<Trajectory> MakeTrajectory(const std::string& spec);
 
 }  // namespace echoservo::control

@@ -34,4 +34,27 @@ CatheterConfig SeedTrackingCatheter() {
   return c;
 }
 
+const std::vector<SheathGuidewirePair>& TableOneGeometries() {
+  static const std::vector<SheathGuidewirePair> pairs = {
+      {1.59, 0.76}, {1.59, 1.50}, {2.38, 1.50}, {2.38, 2.23}};
+  return pairs;
+}
+
+std::vector<CatheterConfig> TableOneSweep(double tip_load_n) {
+  std::vector<CatheterConfig> configs;
+  for (const SheathGuidewirePair& g : TableOneGeometries()) {
+    for (double angle : {90.0, 180.0, 360.0}) {
+      for (double radius : {25.0, 50.0}) {
+        CatheterConfig c;
+        c.sheath_id_mm = g.sheath_id_mm;
+        c.guidewire_od_mm = g.guidewire_od_mm;
+        c.bends = {{angle, radius}};
+        c.tip_load_n = tip_load_n;
+        configs.push_back(c);
+      }
+    }
+  }
+  return configs;
+}
+
 }  // namespace echoservo::hw

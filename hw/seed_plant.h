@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "hw/simulated_catheter.h"
 
@@ -23,5 +24,15 @@ PlantOptions SeedModelPlant(const CatheterConfig& config, std::uint64_t seed = 1
 
 // The seed's evaluation catheter with its tip seal.
 CatheterConfig SeedTrackingCatheter();
+
+// Table I of the seed: sheath inner / guidewire outer diameters (mm).
+struct SheathGuidewirePair {
+  double sheath_id_mm;
+  double guidewire_od_mm;
+};
+const std::vector<SheathGuidewirePair>& TableOneGeometries();
+// The seed's bench sweep: every Table I geometry with one bend of 90°, 180° or 360°
+// at radius 25 or 50 mm (24 configurations), with the given tip load.
+std::vector<CatheterConfig> TableOneSweep(double tip_load_n = 0.0);
 
 }  // namespace echoservo::hw

@@ -1,3 +1,5 @@
+#include "apps/commands/sim_commands.h"
+
 #include <CLI/CLI.hpp>
 
 #include "apps/cli.h"
@@ -7,6 +9,10 @@ namespace echoservo::apps {
 void AddSimCommands(CLI::App& app) {
   auto* sim = app.add_subcommand("sim", "Simulated catheter experiments (the seed's bench tests)");
   sim->require_subcommand(1);
+  AddSimTrack(sim);
+  AddSimSweeps(sim);
+  AddSimRecord(sim);
+  AddSimEffects(sim);
 }
 
 }  // namespace echoservo::apps
