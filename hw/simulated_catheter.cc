@@ -15,7 +15,7 @@ EffectRegistry& Registry() {
 }
 
 TransmissionModel MakeModel(const PlantOptions& o) {
-  TransmissionModel model(Registry(), o.effects, o.config);
+  TransmissionModel model(o.registry != nullptr ? *o.registry : Registry(), o.effects, o.config);
   for (const auto& [name, value] : o.parameters) model.SetParameter(name, value);
   return model;
 }

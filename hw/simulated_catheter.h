@@ -50,6 +50,9 @@ struct PlantOptions {
   ActuatorParams actuator;
   SensorParams sensors;
   int substeps = 10;  // physics steps per write(t, dt)
+  // Where effect names are looked up; null: the built-in catalog. A registry with a
+  // user's own effects must outlive the plant's construction.
+  const EffectRegistry* registry = nullptr;
   std::uint64_t seed = 1;
   bool sensor_noise = true;
 };
