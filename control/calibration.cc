@@ -33,17 +33,19 @@ std::vector<FrictionSample> ProbeFriction(hw::HardwareInterface& hardware, Servo
     NoCompensation none;
     const double duration = stroke.period_s() * (options.strokes_per_speed + 0.25);
     const std::vector<CycleRecord> records = RunFixedStep(loop, stroke, none, duration);
-    // Steady middle of each stroke, after the first quarter period (the start-up).
+    // Steady middle of each stroke, after the first quarter period (the start-up); the
+    // velocity is the encoder's (the base may still be settling after a corner).
     double sum[2] = {0.0, 0.0};
     double vel[2] = {0.0, 0.0};
     int count[2] = {0, 0};
-    for (const CycleRecord& r : records) {
+    for (std::size_t i = 1; i < records.size(); ++i) {
+      const CycleRecord& r = records[i];
       if (r.t_s < 0.25 * stroke.period_s()) continue;
       const MotionSample ref = stroke.Evaluate(r.t_s);
       if (std::abs(ref.position_mm) > 0.5 * options.stroke_amplitude_mm) continue;
       const int dir = ref.velocity_mm_s > 0.0 ? 0 : 1;
       sum[dir] += r.force_n;
-      vel[dir] += ref.velocity_mm_s;
+      vel[dir] += (r.base_mm - records[i - 1].base_mm) / (r.t_s - records[i - 1].t_s);
       ++count[dir];
     }
     for (int dir = 0; dir < 2; ++dir) {

@@ -32,9 +32,7 @@ std::vector<CycleRecord> RunOnce(const TrackOptions& o, const Trajectory& refere
 }  // namespace
 
 void TrackOptions::Validate() const {
-  if (trajectory != "sine" && trajectory != "mitral") {
-    throw std::invalid_argument("track: --trajectory must be sine or mitral, got '" + trajectory + "'");
-  }
+  MakeTrajectory(trajectory);  // throws naming the spec and the bad field
   if (compensation != "none" && compensation != "inverse" && compensation != "iterative" &&
       compensation != "adaptive") {
     throw std::invalid_argument(

@@ -16,7 +16,7 @@
 namespace echoservo::control {
 
 struct TrackOptions {
-  std::string trajectory = "sine";     // sine | mitral
+  std::string trajectory = "sine";     // a trajectory spec (control/trajectory.h)
   std::string compensation = "none";   // none | inverse | iterative | adaptive
   double duration_s = 12.0;
   double metrics_start_s = 2.0;

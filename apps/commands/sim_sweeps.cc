@@ -8,6 +8,8 @@
 #include "apps/commands/sim_commands.h"
 #include "apps/output.h"
 #include "control/bench_experiments.h"
+#include "control/track_experiment.h"
+#include "hw/seed_plant.h"
 
 namespace echoservo::apps {
 namespace {
@@ -15,6 +17,7 @@ namespace {
 struct SweepFlags {
   PlantFlags plant;
   double tip_load_n = 0.0;
+  bool tip_load_n_set = false;
   bool json = false;
   control::SweepOptions Options() const {
     control::SweepOptions o;
@@ -97,10 +100,54 @@ void RunBacklash(const SweepFlags& f) {
             << "   (seed, measured: RMS 0.4 mm, r^2 0.93)\n";
 }
 
+void RunCalibrate(const SweepFlags& f) {
+  control::SweepOptions o = f.Options();
+  hw::CatheterConfig config = hw::SeedTrackingCatheter();
+  if (f.tip_load_n_set) config.tip_load_n = f.tip_load_n;
+  hw::SimulatedCatheter plant(control::SweepPlant(o, config, false));
+  plant.Configure();
+  plant.Activate();
+  const control::CalibrationResult r =
+      control::Calibrate(plant, control::SeedServoConfig(plant.options(), false), o.probe);
+  // What the simulator knows (a real rig would not): the friction level and the width
+  // of the tip-vs-base loop it should produce (deadzone plus 2F/k with compliance).
+  const double truth_friction = plant.model().FrictionLevelN();
+  const double truth_viscous =
+      (plant.model().FrictionMagnitudeN(100.0) - plant.model().FrictionMagnitudeN(0.0)) / 100.0;
+  const double truth_width = plant.model().BacklashWidthMm();
+  if (f.json) {
+    nlohmann::json samples = nlohmann::json::array();
+    for (const auto& s : r.friction_samples) samples.push_back({{"velocity_mm_s", s.velocity_mm_s}, {"force_n", s.force_n}});
+    std::cout << nlohmann::json{{"config", ConfigJson(config)},
+                                {"coulomb_n", r.friction.coulomb_n},
+                                {"coulomb_sd_n", r.friction.coulomb_sd_n},
+                                {"viscous_n_per_mm_s", r.friction.viscous_n_per_mm_s},
+                                {"viscous_sd_n_per_mm_s", r.friction.viscous_sd_n_per_mm_s},
+                                {"backlash_width_mm", r.backlash.width_mm},
+                                {"samples", samples},
+                                {"truth", {{"friction_level_n", truth_friction},
+                                           {"viscous_n_per_mm_s", truth_viscous},
+                                           {"deadzone_width_mm", truth_width}}}}
+                     .dump(2)
+              << "\n";
+    return;
+  }
+  std::cout << "Calibration by probing motions on the seed's tracking catheter (simulated)\n\n";
+  Table t({"quantity", "estimate", "sd", "simulator truth"});
+  t.AddRow({"Coulomb friction (N)", Fixed(r.friction.coulomb_n, 3), Fixed(r.friction.coulomb_sd_n, 3),
+            Fixed(truth_friction, 3)});
+  t.AddRow({"viscous (N/(mm/s))", Fixed(r.friction.viscous_n_per_mm_s, 4),
+            Fixed(r.friction.viscous_sd_n_per_mm_s, 4), Fixed(truth_viscous, 4)});
+  t.AddRow({"hysteresis width (mm)", Fixed(r.backlash.width_mm, 3), "-",
+            Fixed(truth_width, 3) + " (deadzone)"});
+  t.Print(std::cout);
+}
+
 void AddSweep(CLI::App* sim, const char* name, const char* help, void (*run)(const SweepFlags&)) {
   auto flags = std::make_shared<SweepFlags>();
   auto* cmd = sim->add_subcommand(name, help);
-  cmd->add_option("--tip-load", flags->tip_load_n, "Normal force at the tip (N)");
+  cmd->add_option("--tip-load", flags->tip_load_n, "Normal force at the tip (N)")
+      ->each([flags](const std::string&) { flags->tip_load_n_set = true; });
   cmd->add_flag("--json", flags->json, "Print JSON");
   AddPlantFlags(cmd, flags->plant);
   cmd->callback([flags, run] { run(*flags); });
@@ -117,6 +164,10 @@ void AddSimSweeps(CLI::App* sim) {
            "Hysteresis width on a 5 mm, 1 Hz sine for every configuration against B = theta*gap "
            "(RMS error, r^2)",
            RunBacklash);
+  AddSweep(sim, "calibrate",
+           "Estimate friction and backlash width from short probing motions (the seed's "
+           "calibration) on the seed's tracking catheter",
+           RunCalibrate);
 }
 
 }  // namespace echoservo::apps

@@ -27,7 +27,9 @@ struct TrackFlags {
 };
 
 // The seed's published tip MAE (Kesner & Howe 2010), mm; < 0 where none was published.
+// Only the default trajectories are the seed's.
 double SeedMae(const std::string& trajectory, const std::string& compensation) {
+  if (trajectory != "sine" && trajectory != "mitral") return -1.0;
   if (compensation == "none") return trajectory == "sine" ? 1.28 : 1.19;
   if (compensation == "iterative") return trajectory == "sine" ? 0.26 : 0.24;
   return -1.0;

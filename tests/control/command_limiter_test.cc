@@ -242,20 +242,38 @@ TEST(CommandLimiterTest, ReachableStepTargetIsReachedWithoutOvershoot) {
   }
 }
 
+// A slow ramp target well inside the limits: once caught up, the setpoint of cycle k is
+// the target of cycle k (closing the gap in one period already moves with the target;
+// its velocity must not be added a second time).
 TEST(CommandLimiterTest, MovingTargetInsideLimitsIsTrackedExactly) {
-  // A slow ramp target well inside the limits is followed with no lag once caught up.
   CheckedLimiter c;
   c.Reset(0.0);
   const double v = 20.0;
+  double worst = 0.0;
   for (int k = 1; k <= 500; ++k) {
     const double target = v * k * kDt;
     const double x = c.Step(target, v);
-    if (k > 50) {
-      EXPECT_NEAR(x, target, 1e-9) << k;
-    }
+    if (k > 50) worst = std::max(worst, std::abs(x - target));
   }
+  EXPECT_LE(worst, 1e-9) << "the setpoint leads a " << v << " mm/s target by " << worst << " mm";
   EXPECT_EQ(c.limiter().count(LimitEvent::kVelocity), 0u);
   EXPECT_EQ(c.limiter().faults(), 0u);
+}
+
+// A ramp target that stops: the setpoint arrives at the final position without passing
+// it (the "reach a target without overshoot" promise, for a moving target).
+TEST(CommandLimiterTest, RampTargetThatStopsIsNotOvershot) {
+  CheckedLimiter c;
+  c.Reset(0.0);
+  const double v = 20.0, stop_at = 2.005;  // between two samples of the ramp
+  double peak = 0.0;
+  for (int k = 1; k <= 300; ++k) {
+    const double target = std::min(v * k * kDt, stop_at);
+    const double x = c.Step(target, target < stop_at ? v : 0.0);
+    peak = std::max(peak, x);
+  }
+  EXPECT_LE(peak, stop_at + 1e-12) << "overshoot " << peak - stop_at << " mm";
+  EXPECT_NEAR(c.x(), stop_at, 1e-12);
 }
 
 TEST(CommandLimiterTest, ForceIsClampedAndNonFiniteForceIsZeroed) {

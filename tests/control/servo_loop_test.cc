@@ -88,8 +88,9 @@ TEST(ServoLoopTest, BaseFollowsASlowSine) {
   EXPECT_EQ(rig.loop->limiter().faults(), 0u);
 }
 
-// A ±15 mm square wave (every step far beyond what the actuator can follow in a cycle)
-// saturates the loop; the commanded force never leaves ±max_force.
+// A ±15 mm square wave with a stiff position loop (kp = 500 N/mm: a 0.1 mm error
+// already asks for 50 N) drives the loop into force saturation; the commanded force
+// never leaves ±max_force.
 class SquareWave final : public Trajectory {
  public:
   MotionSample Evaluate(double t) const override {
@@ -100,30 +101,28 @@ class SquareWave final : public Trajectory {
 
 TEST(ServoLoopTest, NeverCommandsAForceBeyondTheLimit) {
   const SquareWave square;
-  {
-    Rig rig(square);
-    NoCompensation none;
-    const double limit = rig.loop->config().limits.max_force_n;
-    const std::vector<CycleRecord> records = RunFixedStep(*rig.loop, square, none, 2.0);
-    double peak = 0.0;
-    for (const CycleRecord& r : records) {
-      ASSERT_LE(std::abs(r.actuator_force_n), limit) << "t=" << r.t_s;
-      peak = std::max(peak, std::abs(r.actuator_force_n));
-    }
-    EXPECT_EQ(peak, limit);  // the test did drive it into saturation
-  }
-  {
-    // A PID allowed more than the limiter: the limiter clamps, and counts it.
-    const hw::PlantOptions options = hw::SeedModelPlant(hw::CatheterConfig::SeedEvaluation());
-    ServoConfig config = SeedServoConfig(options, true);
-    config.pid.output_limit_n = 4.0 * config.limits.max_force_n;
+  const hw::PlantOptions options = hw::SeedModelPlant(hw::CatheterConfig::SeedEvaluation());
+  const ServoConfig seed = SeedServoConfig(options, true);
+  for (double pid_limit_factor : {1.0, 4.0}) {
+    // Factor 4: the PID may ask for more than the limiter allows; the limiter clamps
+    // and counts each clamp as a force fault.
+    ServoConfig config = seed;
+    config.pid.kp_n_per_mm = 500.0;
+    config.pid.output_limit_n = pid_limit_factor * config.limits.max_force_n;
     Rig rig(square, config, false);
     NoCompensation none;
     const std::vector<CycleRecord> records = RunFixedStep(*rig.loop, square, none, 2.0);
+    double peak = 0.0;
     for (const CycleRecord& r : records) {
       ASSERT_LE(std::abs(r.actuator_force_n), config.limits.max_force_n) << "t=" << r.t_s;
+      peak = std::max(peak, std::abs(r.actuator_force_n));
     }
-    EXPECT_GT(rig.loop->limiter().count(LimitEvent::kForce), 0u);
+    EXPECT_EQ(peak, config.limits.max_force_n);  // the test did drive it into saturation
+    if (pid_limit_factor > 1.0) {
+      EXPECT_GT(rig.loop->limiter().count(LimitEvent::kForce), 0u);
+    } else {
+      EXPECT_EQ(rig.loop->limiter().count(LimitEvent::kForce), 0u);
+    }
   }
 }
 
@@ -168,7 +167,7 @@ TEST(ServoLoopTest, NonFiniteReferenceIsAFaultAndTrackingResumes) {
     EXPECT_NEAR(r.base_cmd_mm, held, 0.02) << r.t_s;
   }
   // Before and after: normal tracking.
-  EXPECT_LT(RmsBaseError(records, 0.1, 0.5), 0.1);
+  EXPECT_LT(RmsBaseError(records, 0.1, 0.499), 0.1);
   EXPECT_LT(RmsBaseError(records, 1.0, 3.0), 0.1);
 }
 
