@@ -53,11 +53,14 @@ IterativeInverse::IterativeInverse(IterativeOptions options) : options_(options)
 }
 
 void IterativeInverse::Learn(const std::vector<double>& tip_error_mm) {
-  if (correction_mm_.size() < tip_error_mm.size()) correction_mm_.resize(tip_error_mm.size(), 0.0);
+  // Validate first: a rejected run leaves the correction table untouched.
   for (std::size_t k = 0; k < tip_error_mm.size(); ++k) {
     if (!std::isfinite(tip_error_mm[k])) {
       throw std::invalid_argument("iterative inverse: non-finite tip error at cycle " + std::to_string(k));
     }
+  }
+  if (correction_mm_.size() < tip_error_mm.size()) correction_mm_.resize(tip_error_mm.size(), 0.0);
+  for (std::size_t k = 0; k < tip_error_mm.size(); ++k) {
     correction_mm_[k] += options_.learning_gain * tip_error_mm[k];
   }
 }

@@ -57,6 +57,28 @@ std::uint64_t CommandLimiter::faults() const {
   return count(LimitEvent::kTravel) + count(LimitEvent::kNonFinite) + count(LimitEvent::kForce);
 }
 
+double CommandLimiter::BrakingSpeed(double distance_mm) const {
+  // Largest speed v from which, slowing by a·dt every period, the setpoint moves at most
+  // `distance` before it stops: dt·Σ_j max(v − j·a·dt, 0) ≤ d. With u = v/(a·dt),
+  // D = d/(a·dt²) and m = ⌊u⌋ the sum is (m+1)·u − m(m+1)/2, so u = (D + m(m+1)/2)/(m+1)
+  // on the branch where m ≤ u < m+1. Exact in discrete time: a setpoint at this speed
+  // can always meet the next period's bound with one a·dt step of deceleration.
+  const double a_dt = limits_.max_acceleration_mm_s2 * period_s_;
+  const double big_d = std::max(distance_mm, 0.0) / (a_dt * period_s_);
+  double m = std::floor(0.5 * (std::sqrt(1.0 + 8.0 * big_d) - 1.0));
+  for (int i = 0; i < 3; ++i) {
+    const double u = (big_d + 0.5 * m * (m + 1.0)) / (m + 1.0);
+    if (u < m && m > 0.0) {
+      m -= 1.0;
+    } else if (u >= m + 1.0) {
+      m += 1.0;
+    } else {
+      return a_dt * u;
+    }
+  }
+  return a_dt * (big_d + 0.5 * m * (m + 1.0)) / (m + 1.0);
+}
+
 double CommandLimiter::Setpoint(double target_mm, double target_velocity_mm_s) {
   if (!std::isfinite(target_mm) || !std::isfinite(target_velocity_mm_s)) {
     Note(LimitEvent::kNonFinite);
@@ -69,24 +91,30 @@ double CommandLimiter::Setpoint(double target_mm, double target_velocity_mm_s) {
     target_velocity_mm_s = 0.0;
   }
   const double dt = period_s_;
-  const double a_max = limits_.max_acceleration_mm_s2;
+  const double a_dt = limits_.max_acceleration_mm_s2 * dt;
   const double v_max = limits_.max_velocity_mm_s;
-  // Close the gap in one period if possible, but never faster than the braking curve
-  // allows (so that the setpoint arrives without overshoot), on top of the target's
-  // own velocity.
+  target_velocity_mm_s = std::clamp(target_velocity_mm_s, -v_max, v_max);
+
+  // Land on the target this period if possible. Relative to the target's own motion,
+  // approach no faster than the setpoint can still brake within the remaining gap.
   const double gap = target_mm - position_mm_;
-  const double closing = std::copysign(std::min(std::abs(gap) / dt, std::sqrt(2.0 * a_max * std::abs(gap))), gap);
-  double v = target_velocity_mm_s + closing;
+  const double relative = gap / dt - target_velocity_mm_s;
+  const double brake = BrakingSpeed(std::abs(gap - target_velocity_mm_s * dt));
+  double v = target_velocity_mm_s + std::clamp(relative, -brake, brake);
   if (std::abs(v) > v_max) {
     Note(LimitEvent::kVelocity);
     v = std::clamp(v, -v_max, v_max);
   }
   const double dv = v - velocity_mm_s_;
-  if (std::abs(dv) > a_max * dt * (1.0 + 1e-9)) {
+  if (std::abs(dv) > a_dt * (1.0 + 1e-12)) {
     Note(LimitEvent::kAcceleration);
-    v = velocity_mm_s_ + std::copysign(a_max * dt, dv);
+    v = velocity_mm_s_ + std::copysign(a_dt, dv);
   }
-  // Never step beyond the travel window even while decelerating.
+  // Never run into the travel ends: brake for them as for a target. Consistent with the
+  // previous period's bound, this never asks for more than a·dt of deceleration.
+  const double to_wall = v > 0.0 ? limits_.travel_max_mm - position_mm_ : position_mm_ - limits_.travel_min_mm;
+  const double wall_speed = BrakingSpeed(to_wall);
+  if (std::abs(v) > wall_speed) v = std::copysign(wall_speed, v);
   const double next = std::clamp(position_mm_ + v * dt, limits_.travel_min_mm, limits_.travel_max_mm);
   velocity_mm_s_ = (next - position_mm_) / dt;
   position_mm_ = next;

@@ -53,6 +53,7 @@ class CommandLimiter {
 
  private:
   void Note(LimitEvent e) { ++counts_[static_cast<int>(e)]; }
+  double BrakingSpeed(double distance_mm) const;
   Limits limits_;
   double period_s_;
   double position_mm_ = 0.0;

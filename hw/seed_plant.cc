@@ -14,7 +14,7 @@ PlantOptions SeedCalibratedPlant(const CatheterConfig& config, std::uint64_t see
       {"viscous_friction.b_n_per_mm_s", 0.006}, // the seed's typical viscous term
       {"capstan_friction.mu", 0.05},
       {"guidewire_compliance.k_n_per_mm", 30.0},
-      {"deadzone_traversal.tau_s", 0.005},
+      {"deadzone_traversal.tau_s", 0.003},
   };
   return o;
 }
