@@ -46,6 +46,10 @@ Trial ReadTrial(const std::filesystem::path& csv_path);
 // Reads every `*.csv` with a sibling `.json` in `dir` (sorted by name). Throws
 // TrialFormatError if the folder is missing, empty, or any trial is invalid.
 std::vector<Trial> ReadDataset(const std::filesystem::path& dir);
+// Reads a catheter configuration file: a JSON object with exactly the geometry keys of
+// the trial JSON (sheath_id_mm, guidewire_od_mm, bends, tip_load_n). Unlike a trial's
+// JSON, which may come from other tools, unknown keys are errors. Throws TrialFormatError.
+CatheterConfig ReadCatheterConfig(const std::filesystem::path& json_path);
 // Writes `<dir>/<trial.name>.csv` and `.json` (creating `dir`). Throws on I/O errors
 // or an invalid trial (mismatched column lengths, non-finite values, bad geometry).
 void WriteTrial(const std::filesystem::path& dir, const Trial& trial);

@@ -278,12 +278,16 @@ double RequireNumber(const fs::path& path, const Json& obj, const std::string& k
   return it->get<double>();
 }
 
-void ReadJson(const fs::path& path, Trial& trial) {
-  const Json j = ParseJsonText(path, ReadWholeFile(path));
+bool IsGeometryKey(const std::string& k) {
+  return k == "sheath_id_mm" || k == "guidewire_od_mm" || k == "bends" || k == "tip_load_n";
+}
+
+// The catheter geometry keys of a trial JSON or a catheter configuration file.
+CatheterConfig ParseGeometry(const fs::path& path, const Json& j) {
   if (!j.is_object()) {
     Fail(path, "the top level must be a JSON object, got " + std::string(j.type_name()));
   }
-  CatheterConfig& cfg = trial.config;
+  CatheterConfig cfg;
   cfg.sheath_id_mm = RequireNumber(path, j, "sheath_id_mm", "sheath_id_mm");
   cfg.guidewire_od_mm = RequireNumber(path, j, "guidewire_od_mm", "guidewire_od_mm");
   cfg.tip_load_n = RequireNumber(path, j, "tip_load_n", "tip_load_n");
@@ -293,7 +297,6 @@ void ReadJson(const fs::path& path, Trial& trial) {
   if (!bends->is_array()) {
     Fail(path, "key 'bends' must be a list, got " + std::string(bends->type_name()));
   }
-  cfg.bends.clear();
   for (std::size_t i = 0; i < bends->size(); ++i) {
     const Json& b = (*bends)[i];
     const std::string key = "bends[" + std::to_string(i) + "]";
@@ -310,7 +313,17 @@ void ReadJson(const fs::path& path, Trial& trial) {
     bend.radius_mm = RequireNumber(path, b, "radius_mm", key + ".radius_mm");
     cfg.bends.push_back(bend);
   }
+  try {
+    cfg.Validate(path.string());
+  } catch (const std::invalid_argument& e) {
+    throw TrialFormatError(e.what());
+  }
+  return cfg;
+}
 
+void ReadJson(const fs::path& path, Trial& trial) {
+  const Json j = ParseJsonText(path, ReadWholeFile(path));
+  trial.config = ParseGeometry(path, j);
   trial.meta_json = "{}";
   if (const auto meta = j.find("meta"); meta != j.end()) {
     if (!meta->is_object()) {
@@ -318,18 +331,10 @@ void ReadJson(const fs::path& path, Trial& trial) {
     }
     trial.meta_json = meta->dump();
   }
-
   for (const auto& [k, v] : j.items()) {
-    if (k != "sheath_id_mm" && k != "guidewire_od_mm" && k != "bends" && k != "tip_load_n" &&
-        k != "meta") {
+    if (!IsGeometryKey(k) && k != "meta") {
       trial.warnings.push_back(path.string() + ": ignoring unknown key '" + k + "'");
     }
-  }
-
-  try {
-    cfg.Validate(path.string());
-  } catch (const std::invalid_argument& e) {
-    throw TrialFormatError(e.what());
   }
 }
 
@@ -540,6 +545,21 @@ void WriteTrial(const fs::path& dir, const Trial& trial) {
   // rather than a CSV without its sibling, which they reject.
   WriteFileAtomically(json_path, j.dump(2) + "\n");
   WriteFileAtomically(csv_path, csv);
+}
+
+CatheterConfig ReadCatheterConfig(const std::filesystem::path& json_path) {
+  RequireRegularFile(json_path, "catheter configuration");
+  const Json j = ParseJsonText(json_path, ReadWholeFile(json_path));
+  if (j.is_object()) {
+    for (const auto& [k, v] : j.items()) {
+      if (!IsGeometryKey(k)) {
+        Fail(json_path, "key '" + k +
+                            "' is unknown (a catheter configuration has sheath_id_mm, "
+                            "guidewire_od_mm, bends and tip_load_n)");
+      }
+    }
+  }
+  return ParseGeometry(json_path, j);
 }
 
 }  // namespace echoservo::hw

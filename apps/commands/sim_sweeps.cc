@@ -10,6 +10,7 @@
 #include "control/bench_experiments.h"
 #include "control/track_experiment.h"
 #include "hw/seed_plant.h"
+#include "hw/trial.h"
 
 namespace echoservo::apps {
 namespace {
@@ -18,6 +19,7 @@ struct SweepFlags {
   PlantFlags plant;
   double tip_load_n = 0.0;
   bool tip_load_n_set = false;
+  std::string catheter;
   bool json = false;
   control::SweepOptions Options() const {
     control::SweepOptions o;
@@ -102,7 +104,8 @@ void RunBacklash(const SweepFlags& f) {
 
 void RunCalibrate(const SweepFlags& f) {
   control::SweepOptions o = f.Options();
-  hw::CatheterConfig config = hw::SeedTrackingCatheter();
+  hw::CatheterConfig config =
+      f.catheter.empty() ? hw::SeedTrackingCatheter() : hw::ReadCatheterConfig(f.catheter);
   if (f.tip_load_n_set) config.tip_load_n = f.tip_load_n;
   hw::SimulatedCatheter plant(control::SweepPlant(o, config, false));
   plant.Configure();
@@ -143,14 +146,16 @@ void RunCalibrate(const SweepFlags& f) {
   t.Print(std::cout);
 }
 
-void AddSweep(CLI::App* sim, const char* name, const char* help, void (*run)(const SweepFlags&)) {
-  auto flags = std::make_shared<SweepFlags>();
+CLI::App* AddSweep(CLI::App* sim, const char* name, const char* help,
+                   void (*run)(const SweepFlags&), std::shared_ptr<SweepFlags> flags = nullptr) {
+  if (!flags) flags = std::make_shared<SweepFlags>();
   auto* cmd = sim->add_subcommand(name, help);
   cmd->add_option("--tip-load", flags->tip_load_n, "Normal force at the tip (N)")
       ->each([flags](const std::string&) { flags->tip_load_n_set = true; });
   cmd->add_flag("--json", flags->json, "Print JSON");
   AddPlantFlags(cmd, flags->plant);
   cmd->callback([flags, run] { run(*flags); });
+  return cmd;
 }
 
 }  // namespace
@@ -164,10 +169,13 @@ void AddSimSweeps(CLI::App* sim) {
            "Hysteresis width on a 5 mm, 1 Hz sine for every configuration against B = theta*gap "
            "(RMS error, r^2)",
            RunBacklash);
-  AddSweep(sim, "calibrate",
-           "Estimate friction and backlash width from short probing motions (the seed's "
-           "calibration) on the seed's tracking catheter",
-           RunCalibrate);
+  auto flags = std::make_shared<SweepFlags>();
+  auto* calibrate = AddSweep(sim, "calibrate",
+                             "Estimate friction and backlash width from short probing motions (the "
+                             "seed's calibration), by default on the seed's tracking catheter",
+                             RunCalibrate, flags);
+  calibrate->add_option("--catheter", flags->catheter,
+                        "Catheter geometry JSON (sheath_id_mm, guidewire_od_mm, bends, tip_load_n)");
 }
 
 }  // namespace echoservo::apps

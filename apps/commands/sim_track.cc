@@ -22,6 +22,7 @@ struct TrackFlags {
   double metrics_start_s = 2.0;
   int iterations = 1;
   std::string record_dir;
+  std::string catheter;
   bool json = false;
   PlantFlags plant;
 };
@@ -38,6 +39,7 @@ double SeedMae(const std::string& trajectory, const std::string& compensation) {
 nlohmann::json RunOne(const TrackFlags& f, const std::string& trajectory,
                       const std::string& compensation) {
   control::TrackOptions o = control::TrackOptions::SeedDefaults();
+  if (!f.catheter.empty()) o.plant.config = hw::ReadCatheterConfig(f.catheter);
   o.trajectory = trajectory;
   o.compensation = compensation;
   o.duration_s = f.duration_s;
@@ -114,8 +116,11 @@ void Run(const TrackFlags& f) {
     std::cout << (results.size() == 1 ? results[0] : nlohmann::json{{"results", results}}).dump(2) << "\n";
     return;
   }
-  std::cout << "Tip tracking on the seed-calibrated catheter (0.8 mm guidewire in a 1.6 mm sheath,\n"
-               "two 90 deg bends, tip seal); error = reference - measured tip over t in ["
+  std::cout << (f.catheter.empty()
+                    ? "Tip tracking on the seed-calibrated catheter (0.8 mm guidewire in a 1.6 mm sheath,\n"
+                      "two 90 deg bends, tip seal)"
+                    : "Tip tracking on the seed-calibrated plant with the catheter of " + f.catheter)
+            << "; error = reference - measured tip over t in ["
             << f.metrics_start_s << ", " << f.duration_s << "] s\n\n";
   Table table({"trajectory", "compensation", "mae_mm", "rms_mm", "max_mm", "seed_mae_mm", "ratio"});
   for (const auto& j : results) {
@@ -148,6 +153,9 @@ void AddSimTrack(CLI::App* sim) {
   cmd->add_option("--metrics-start", flags->metrics_start_s, "Start of the metrics window (s)");
   cmd->add_option("--iterations", flags->iterations,
                   "Iterative: learning runs before the reported one (the seed's procedure: 1)");
+  cmd->add_option("--catheter", flags->catheter,
+                  "Catheter geometry JSON (sheath_id_mm, guidewire_od_mm, bends, tip_load_n); "
+                  "default: the seed's tracking catheter");
   cmd->add_option("--record", flags->record_dir, "Write the reported run(s) as trials into this folder");
   cmd->add_flag("--json", flags->json, "Print JSON");
   AddPlantFlags(cmd, flags->plant);

@@ -157,6 +157,37 @@ TEST(Cli, RecordWritesAReadableDataset) {
   }
 }
 
+TEST(Cli, CatheterFileIsStrict) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.path());
+  const auto good = dir.path() / "cath.json";
+  std::ofstream(good) << R"({"sheath_id_mm": 2.38, "guidewire_od_mm": 1.50,
+    "bends": [{"angle_deg": 180, "radius_mm": 30}], "tip_load_n": 0.5})";
+  const Result ok = RunCli("sim calibrate --catheter " + good.string() + " --json");
+  ASSERT_EQ(ok.rc, 0) << ok.err;
+  // The loop width of this catheter is at least its deadzone π·0.88 mm.
+  const auto j = nlohmann::json::parse(ok.out);
+  EXPECT_NEAR(j["truth"]["deadzone_width_mm"].get<double>(), 3.141592653589793 * 0.88, 1e-9);
+  EXPECT_GT(j["backlash_width_mm"].get<double>(), 0.95 * 3.141592653589793 * 0.88);
+
+  const auto bad = dir.path() / "bad.json";
+  std::ofstream(bad) << R"({"sheath_id_mm": 2.38, "guidewire_od_mm": 1.50, "bends": [],
+    "tip_load_n": 0.5, "sheath_length_mm": 850})";
+  const Result r = RunCli("sim track --catheter " + bad.string());
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("sheath_length_mm"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("bad.json"), std::string::npos) << r.err;
+
+  const auto wide = dir.path() / "wide.json";
+  std::ofstream(wide) << R"({"sheath_id_mm": 1.0, "guidewire_od_mm": 1.5, "bends": [],
+    "tip_load_n": 0})";
+  const Result w = RunCli("sim calibrate --catheter " + wide.string());
+  EXPECT_NE(w.rc, 0);
+  EXPECT_NE(w.err.find("guidewire_od_mm"), std::string::npos) << w.err;
+  EXPECT_NE(RunCli("sim track --catheter " + (dir.path() / "missing.json").string()).err.find("not found"),
+            std::string::npos);
+}
+
 struct BadInput {
   const char* args;
   const char* expected_in_error;
