@@ -26,6 +26,7 @@
 #include <utility>
 #include <vector>
 
+#include "tests/test_util/expect_error.h"
 #include "hw/effect.h"
 #include "hw/effect_registry.h"
 #include "hw/effects/builtin_effects.h"
@@ -34,6 +35,9 @@
 
 namespace echoservo::hw {
 namespace {
+
+using ::echoservo::testing::ExpectContains;
+using ::echoservo::testing::InvalidArgumentMessage;
 
 // doc-example:begin
 class SealPreloadFriction final : public DescribedEffect {
@@ -84,24 +88,6 @@ constexpr double kDefaultMuSeal = 0.15;
 const EffectRegistry& Registry() {
   static const EffectRegistry registry = RegistryWithSeal();
   return registry;
-}
-
-template <class F>
-std::string InvalidArgumentMessage(F&& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  } catch (...) {
-    ADD_FAILURE() << "threw something other than std::invalid_argument";
-    return {};
-  }
-  ADD_FAILURE() << "expected std::invalid_argument";
-  return {};
-}
-
-void ExpectContains(const std::string& text, const std::string& part) {
-  EXPECT_NE(text.find(part), std::string::npos) << "'" << text << "' lacks '" << part << "'";
 }
 
 std::string ReadText(const std::string& path) {

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/test_util/expect_error.h"
 #include "hw/effect.h"
 #include "hw/effect_registry.h"
 #include "hw/effects/builtin_effects.h"
@@ -16,6 +17,9 @@
 
 namespace echoservo::hw {
 namespace {
+
+using ::echoservo::testing::ExpectContains;
+using ::echoservo::testing::InvalidArgumentMessage;
 
 using Names = std::vector<std::string>;
 
@@ -27,25 +31,6 @@ const Names kCatalog = {"coulomb_friction",     "viscous_friction", "stribeck_fr
 const EffectRegistry& Registry() {
   static const EffectRegistry registry = EffectRegistry::WithBuiltinEffects();
   return registry;
-}
-
-// Runs `f` and returns the std::invalid_argument message (fails if nothing is thrown).
-template <class F>
-std::string InvalidArgumentMessage(F&& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  } catch (...) {
-    ADD_FAILURE() << "threw something other than std::invalid_argument";
-    return {};
-  }
-  ADD_FAILURE() << "expected std::invalid_argument";
-  return {};
-}
-
-void ExpectContains(const std::string& text, const std::string& part) {
-  EXPECT_NE(text.find(part), std::string::npos) << "'" << text << "' lacks '" << part << "'";
 }
 
 CatheterConfig Geometry(double sheath_id_mm, double guidewire_od_mm, std::vector<double> bends_deg,

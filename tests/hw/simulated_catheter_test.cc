@@ -7,6 +7,7 @@
 // noisy samples has a standard deviation σ/√n; we allow 4 of those (a false alarm
 // about once in 16 000 runs, and the seed is fixed) plus half a quantum (the largest
 // bias rounding could add; with σ > q the bias is in fact far smaller).
+#include "tests/test_util/expect_error.h"
 #include "hw/simulated_catheter.h"
 
 #include <gtest/gtest.h>
@@ -23,6 +24,9 @@
 
 namespace echoservo::hw {
 namespace {
+
+using ::echoservo::testing::ExpectContains;
+using ::echoservo::testing::InvalidArgumentMessage;
 
 constexpr double kDt = 1e-3;  // control period (s)
 
@@ -175,20 +179,6 @@ std::vector<Sample> After(const std::vector<Sample>& samples, double t_s) {
     if (s.t >= t_s) out.push_back(s);
   }
   return out;
-}
-
-template <class F>
-std::string InvalidArgumentMessage(F&& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  } catch (...) {
-    ADD_FAILURE() << "threw something other than std::invalid_argument";
-    return {};
-  }
-  ADD_FAILURE() << "expected std::invalid_argument";
-  return {};
 }
 
 const SensorParams kSensors{};

@@ -1,5 +1,6 @@
 // TransmissionModel: parameter naming and validation, and the composition of effects
 // into the pipeline friction → drive → deadzone → tip → sensor.
+#include "tests/test_util/expect_error.h"
 #include "hw/transmission_model.h"
 
 #include <gtest/gtest.h>
@@ -14,6 +15,9 @@
 namespace echoservo::hw {
 namespace {
 
+using ::echoservo::testing::ExpectContains;
+using ::echoservo::testing::InvalidArgumentMessage;
+
 using Names = std::vector<std::string>;
 
 const EffectRegistry& Registry() {
@@ -23,24 +27,6 @@ const EffectRegistry& Registry() {
 
 TransmissionModel FullCatalog(const CatheterConfig& config = CatheterConfig::SeedEvaluation()) {
   return TransmissionModel(Registry(), Registry().Names(), config);
-}
-
-template <class F>
-std::string InvalidArgumentMessage(F&& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  } catch (...) {
-    ADD_FAILURE() << "threw something other than std::invalid_argument";
-    return {};
-  }
-  ADD_FAILURE() << "expected std::invalid_argument";
-  return {};
-}
-
-void ExpectContains(const std::string& text, const std::string& part) {
-  EXPECT_NE(text.find(part), std::string::npos) << "'" << text << "' lacks '" << part << "'";
 }
 
 TEST(TransmissionModel, QualifiedParameterNamesInEffectOrder) {
