@@ -12,13 +12,15 @@ namespace echoservo::apps {
 void Table::Print(std::ostream& out) const {
   std::vector<std::size_t> width(header_.size(), 0);
   auto widen = [&](const std::vector<std::string>& row) {
-    for (std::size_t i = 0; i < row.size() && i < width.size(); ++i) width[i] = std::max(width[i], row[i].size());
+    for (std::size_t i = 0; i < row.size() && i < width.size(); ++i)
+      width[i] = std::max(width[i], row[i].size());
   };
   widen(header_);
   for (const auto& r : rows_) widen(r);
   auto line = [&](const std::vector<std::string>& row) {
     for (std::size_t i = 0; i < row.size() && i < width.size(); ++i) {
-      out << (i == 0 ? "" : "  ") << std::setw(static_cast<int>(width[i])) << (i == 0 ? std::left : std::right) << row[i];
+      out << (i == 0 ? "" : "  ") << std::setw(static_cast<int>(width[i]))
+          << (i == 0 ? std::left : std::right) << row[i];
     }
     out << std::right << "\n";
   };
@@ -71,7 +73,8 @@ std::vector<std::string> SplitList(const std::string& text, const std::string& o
 
 std::vector<double> ParseNumberList(const std::string& text, const std::string& option) {
   std::vector<double> values;
-  for (const std::string& item : SplitList(text, option)) values.push_back(ParseNumber(item, option));
+  for (const std::string& item : SplitList(text, option))
+    values.push_back(ParseNumber(item, option));
   return values;
 }
 

@@ -40,7 +40,7 @@ using echoservo::hw::PlantOptions;
 using echoservo::hw::SimulatedCatheter;
 
 constexpr std::size_t kCyclesPerIteration = 1000;  // 1 s of simulated time at 1 kHz
-constexpr std::size_t kRunIterations = 12;          // servo runs restart every 12 s
+constexpr std::size_t kRunIterations = 12;         // servo runs restart every 12 s
 
 PlantOptions SeedPlant(int substeps) {
   PlantOptions o = echoservo::hw::SeedCalibratedPlant(echoservo::hw::SeedTrackingCatheter());
@@ -71,8 +71,7 @@ void RunSimulatedServo(benchmark::State& state, int substeps) {
   ServoLoop loop(plant, servo);
 
   AdaptiveOptions adaptive;
-  adaptive.initial_width_mm =
-      plant_options.config.TotalBendRad() * plant_options.config.GapMm();
+  adaptive.initial_width_mm = plant_options.config.TotalBendRad() * plant_options.config.GapMm();
   adaptive.max_acceleration_mm_s2 = servo.limits.max_acceleration_mm_s2;
   AdaptiveInverse compensator(adaptive);
   const double start_mm = reference->Evaluate(0.0).position_mm;
@@ -110,9 +109,7 @@ void BM_SimulatedServoRealtimeFactor(benchmark::State& state) {
 }
 BENCHMARK(BM_SimulatedServoRealtimeFactor)->UseRealTime()->Unit(benchmark::kMillisecond);
 
-void BM_SimulatedServoReferenceIntegrator(benchmark::State& state) {
-  RunSimulatedServo(state, 50);
-}
+void BM_SimulatedServoReferenceIntegrator(benchmark::State& state) { RunSimulatedServo(state, 50); }
 BENCHMARK(BM_SimulatedServoReferenceIntegrator)->UseRealTime()->Unit(benchmark::kMillisecond);
 
 // The plant alone. The constant command is 0.15 N above the breakaway friction, so the
@@ -172,8 +169,9 @@ BENCHMARK_CAPTURE(BM_TransmissionModelFriction, seed_model,
 
 int main(int argc, char** argv) {
   benchmark::AddCustomContext("plant", "SeedCalibratedPlant(SeedTrackingCatheter()), 1 kHz servo");
-  benchmark::AddCustomContext("servo", "SeedServoConfig(plant, friction_feedforward = true), "
-                                       "AdaptiveInverse, 5 mm 1 Hz sine");
+  benchmark::AddCustomContext("servo",
+                              "SeedServoConfig(plant, friction_feedforward = true), "
+                              "AdaptiveInverse, 5 mm 1 Hz sine");
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

@@ -56,7 +56,8 @@ void IterativeInverse::Learn(const std::vector<double>& tip_error_mm) {
   // Validate first: a rejected run leaves the correction table untouched.
   for (std::size_t k = 0; k < tip_error_mm.size(); ++k) {
     if (!std::isfinite(tip_error_mm[k])) {
-      throw std::invalid_argument("iterative inverse: non-finite tip error at cycle " + std::to_string(k));
+      throw std::invalid_argument("iterative inverse: non-finite tip error at cycle " +
+                                  std::to_string(k));
     }
   }
   if (correction_mm_.size() < tip_error_mm.size()) correction_mm_.resize(tip_error_mm.size(), 0.0);
@@ -78,9 +79,11 @@ void AdaptiveOptions::Validate() const {
     if (!ok) throw std::invalid_argument(std::string("adaptive inverse: invalid '") + name + "'");
   };
   check(std::isfinite(initial_width_mm) && initial_width_mm >= 0.0, "initial_width_mm");
-  check(std::isfinite(max_acceleration_mm_s2) && max_acceleration_mm_s2 > 0.0, "max_acceleration_mm_s2");
+  check(std::isfinite(max_acceleration_mm_s2) && max_acceleration_mm_s2 > 0.0,
+        "max_acceleration_mm_s2");
   check(forgetting > 0.9 && forgetting <= 1.0, "forgetting");
-  check(std::isfinite(settle_after_reversal_s) && settle_after_reversal_s >= 0.0, "settle_after_reversal_s");
+  check(std::isfinite(settle_after_reversal_s) && settle_after_reversal_s >= 0.0,
+        "settle_after_reversal_s");
   check(std::isfinite(min_speed_mm_s) && min_speed_mm_s >= 0.0, "min_speed_mm_s");
   check(std::isfinite(initial_uncertainty) && initial_uncertainty > 0.0, "initial_uncertainty");
   check(std::isfinite(innovation_gate_mm) && innovation_gate_mm > 0.0, "innovation_gate_mm");

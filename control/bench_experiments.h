@@ -17,7 +17,7 @@
 namespace echoservo::control {
 
 struct SweepOptions {
-  std::vector<std::string> effects;  // empty: the experiment's default plant
+  std::vector<std::string> effects;                        // empty: the experiment's default plant
   std::vector<std::pair<std::string, double>> parameters;  // "<effect>.<param>" overrides
   double tip_load_n = 0.0;
   std::uint64_t seed = 1;

@@ -11,13 +11,17 @@ void ProbeOptions::Validate() const {
     if (!ok) throw std::invalid_argument("calibration: invalid '" + field + "'");
   };
   check(speeds_mm_s.size() >= 2, "speeds_mm_s (need at least 2 speeds)");
-  for (double v : speeds_mm_s) check(std::isfinite(v) && v > 0.0 && v <= 400.0, "speeds_mm_s (each in (0, 400])");
-  check(std::isfinite(stroke_amplitude_mm) && stroke_amplitude_mm > 0.5 && stroke_amplitude_mm <= 20.0,
+  for (double v : speeds_mm_s)
+    check(std::isfinite(v) && v > 0.0 && v <= 400.0, "speeds_mm_s (each in (0, 400])");
+  check(std::isfinite(stroke_amplitude_mm) && stroke_amplitude_mm > 0.5 &&
+            stroke_amplitude_mm <= 20.0,
         "stroke_amplitude_mm (in (0.5, 20])");
   check(strokes_per_speed >= 1 && strokes_per_speed <= 20, "strokes_per_speed");
-  check(std::isfinite(backlash_amplitude_mm) && backlash_amplitude_mm > 0.5 && backlash_amplitude_mm <= 20.0,
+  check(std::isfinite(backlash_amplitude_mm) && backlash_amplitude_mm > 0.5 &&
+            backlash_amplitude_mm <= 20.0,
         "backlash_amplitude_mm (in (0.5, 20])");
-  check(std::isfinite(backlash_frequency_hz) && backlash_frequency_hz > 0.0 && backlash_frequency_hz <= 10.0,
+  check(std::isfinite(backlash_frequency_hz) && backlash_frequency_hz > 0.0 &&
+            backlash_frequency_hz <= 10.0,
         "backlash_frequency_hz (in (0, 10])");
   check(backlash_cycles >= 2 && backlash_cycles <= 50, "backlash_cycles (in [2, 50])");
 }

@@ -18,11 +18,11 @@ namespace echoservo::control {
 
 struct ProbeOptions {
   std::vector<double> speeds_mm_s = {5.0, 10.0, 20.0, 40.0, 80.0};
-  double stroke_amplitude_mm = 6.0;   // triangle between ±amplitude
-  int strokes_per_speed = 2;          // full triangle periods per speed
-  double backlash_amplitude_mm = 5.0; // the seed's 5 mm, 1 Hz sine
+  double stroke_amplitude_mm = 6.0;    // triangle between ±amplitude
+  int strokes_per_speed = 2;           // full triangle periods per speed
+  double backlash_amplitude_mm = 5.0;  // the seed's 5 mm, 1 Hz sine
   double backlash_frequency_hz = 1.0;
-  int backlash_cycles = 3;            // the first is discarded
+  int backlash_cycles = 3;  // the first is discarded
   // Throws std::invalid_argument naming the field.
   void Validate() const;
 };

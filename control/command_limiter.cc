@@ -40,7 +40,8 @@ std::string_view ToString(LimitEvent e) {
   return "unknown";
 }
 
-CommandLimiter::CommandLimiter(Limits limits, double period_s) : limits_(limits), period_s_(period_s) {
+CommandLimiter::CommandLimiter(Limits limits, double period_s)
+    : limits_(limits), period_s_(period_s) {
   limits_.Validate();
   if (!(std::isfinite(period_s) && period_s > 0.0)) {
     throw std::invalid_argument("limiter: period must be finite and > 0 s");
@@ -112,10 +113,12 @@ double CommandLimiter::Setpoint(double target_mm, double target_velocity_mm_s) {
   }
   // Never run into the travel ends: brake for them as for a target. Consistent with the
   // previous period's bound, this never asks for more than a·dt of deceleration.
-  const double to_wall = v > 0.0 ? limits_.travel_max_mm - position_mm_ : position_mm_ - limits_.travel_min_mm;
+  const double to_wall =
+      v > 0.0 ? limits_.travel_max_mm - position_mm_ : position_mm_ - limits_.travel_min_mm;
   const double wall_speed = BrakingSpeed(to_wall);
   if (std::abs(v) > wall_speed) v = std::copysign(wall_speed, v);
-  const double next = std::clamp(position_mm_ + v * dt, limits_.travel_min_mm, limits_.travel_max_mm);
+  const double next =
+      std::clamp(position_mm_ + v * dt, limits_.travel_min_mm, limits_.travel_max_mm);
   velocity_mm_s_ = (next - position_mm_) / dt;
   position_mm_ = next;
   return position_mm_;

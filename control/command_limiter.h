@@ -26,11 +26,11 @@ struct Limits {
 };
 
 enum class LimitEvent : int {
-  kTravel = 0,       // setpoint outside travel: clamped (fault)
-  kNonFinite,        // NaN/inf setpoint or force: rejected (fault)
-  kVelocity,         // setpoint velocity shaped
-  kAcceleration,     // setpoint acceleration shaped
-  kForce,            // force command clamped (fault)
+  kTravel = 0,    // setpoint outside travel: clamped (fault)
+  kNonFinite,     // NaN/inf setpoint or force: rejected (fault)
+  kVelocity,      // setpoint velocity shaped
+  kAcceleration,  // setpoint acceleration shaped
+  kForce,         // force command clamped (fault)
   kCount
 };
 std::string_view ToString(LimitEvent e);

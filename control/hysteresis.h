@@ -24,7 +24,6 @@ struct HysteresisWidth {
 // no engaged sample (the motion never moved the tip both ways).
 HysteresisWidth EstimateHysteresisWidth(const std::vector<double>& t_s,
                                         const std::vector<double>& base_mm,
-                                        const std::vector<double>& tip_mm,
-                                        double window_s = 0.02);
+                                        const std::vector<double>& tip_mm, double window_s = 0.02);
 
 }  // namespace echoservo::control

@@ -47,7 +47,8 @@ double Pid::Update(double setpoint, double measurement, double feedforward_n) {
   derivative_ += alpha * (raw_rate - derivative_);
 
   const double limit = gains_.output_limit_n;
-  const double pd = gains_.kp_n_per_mm * error - gains_.kd_n_per_mm_per_s * derivative_ + feedforward_n;
+  const double pd =
+      gains_.kp_n_per_mm * error - gains_.kd_n_per_mm_per_s * derivative_ + feedforward_n;
   // Anti-windup: conditional integration (freeze while the output is saturated in the
   // direction the error pushes) and an absolute bound on the integral term.
   const double candidate =

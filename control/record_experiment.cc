@@ -15,7 +15,8 @@
 namespace echoservo::control {
 namespace {
 
-std::string TrialName(std::size_t index, const hw::CatheterConfig& c, const std::string& trajectory) {
+std::string TrialName(std::size_t index, const hw::CatheterConfig& c,
+                      const std::string& trajectory) {
   std::string traj = trajectory;
   for (char& ch : traj) {
     if (ch == ':') ch = '_';
@@ -108,7 +109,8 @@ RecordResult RecordDataset(const RecordOptions& o) {
           comp = std::make_unique<NoCompensation>();
         }
         ServoLoop loop(plant, servo);
-        const std::vector<CycleRecord> records = RunFixedStep(loop, *reference, *comp, o.duration_s);
+        const std::vector<CycleRecord> records =
+            RunFixedStep(loop, *reference, *comp, o.duration_s);
 
         hw::Trial trial;
         trial.name = TrialName(index, config, spec);

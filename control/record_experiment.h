@@ -21,7 +21,7 @@ struct RecordOptions {
   std::filesystem::path out_dir;
   std::vector<std::string> effects;  // empty: the seed-calibrated plant's effects
   std::vector<std::pair<std::string, double>> parameters;
-  std::string configs = "table1";    // table1 (24 configurations) | seed (the tracking catheter)
+  std::string configs = "table1";  // table1 (24 configurations) | seed (the tracking catheter)
   std::vector<std::string> trajectories = {"sine"};
   std::vector<double> tip_loads_n = {0.0};
   std::string compensation = "none";  // none | inverse | adaptive

@@ -41,8 +41,11 @@ CycleRecord ServoLoop::Cycle(double t_s, std::size_t cycle, const Trajectory& re
   const double base = hw_.state(i_base_);
   const double tip = hw_.state(i_tip_);
 
-  const BaseCommand target = compensator.Calc(
-      {.t_s = t_s, .cycle = cycle, .period_s = dt, .reference = &reference, .tip_measured_mm = tip});
+  const BaseCommand target = compensator.Calc({.t_s = t_s,
+                                               .cycle = cycle,
+                                               .period_s = dt,
+                                               .reference = &reference,
+                                               .tip_measured_mm = tip});
   const double setpoint = limiter_.Setpoint(target.position_mm, target.velocity_mm_s);
   const double velocity = limiter_.setpoint_velocity_mm_s();
   const double acceleration = (velocity - last_velocity_mm_s_) / dt;

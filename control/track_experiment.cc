@@ -36,7 +36,8 @@ void TrackOptions::Validate() const {
   if (compensation != "none" && compensation != "inverse" && compensation != "iterative" &&
       compensation != "adaptive") {
     throw std::invalid_argument(
-        "track: --compensation must be none, inverse, iterative or adaptive, got '" + compensation + "'");
+        "track: --compensation must be none, inverse, iterative or adaptive, got '" + compensation +
+        "'");
   }
   if (!(std::isfinite(duration_s) && duration_s > 0.0 && duration_s <= 600.0)) {
     throw std::invalid_argument("track: --duration must be in (0, 600] s");
@@ -44,7 +45,8 @@ void TrackOptions::Validate() const {
   if (!(std::isfinite(metrics_start_s) && metrics_start_s >= 0.0 && metrics_start_s < duration_s)) {
     throw std::invalid_argument("track: --metrics-start must be in [0, duration)");
   }
-  if (iterations < 1 || iterations > 50) throw std::invalid_argument("track: --iterations must be in [1, 50]");
+  if (iterations < 1 || iterations > 50)
+    throw std::invalid_argument("track: --iterations must be in [1, 50]");
   servo.Validate();
 }
 
@@ -57,8 +59,8 @@ ServoConfig SeedServoConfig(const hw::PlantOptions& plant, bool friction_feedfor
     // Nominal friction of the configuration, as calibration would measure it.
     hw::SimulatedCatheter probe(plant);
     c.feedforward.coulomb_n = probe.model().FrictionLevelN();
-    c.feedforward.viscous_n_per_mm_s =
-        probe.model().FrictionMagnitudeN(100.0) / 100.0 - probe.model().FrictionMagnitudeN(0.0) / 100.0;
+    c.feedforward.viscous_n_per_mm_s = probe.model().FrictionMagnitudeN(100.0) / 100.0 -
+                                       probe.model().FrictionMagnitudeN(0.0) / 100.0;
   }
   return c;
 }

@@ -16,12 +16,12 @@
 namespace echoservo::control {
 
 struct TrackOptions {
-  std::string trajectory = "sine";     // a trajectory spec (control/trajectory.h)
-  std::string compensation = "none";   // none | inverse | iterative | adaptive
+  std::string trajectory = "sine";    // a trajectory spec (control/trajectory.h)
+  std::string compensation = "none";  // none | inverse | iterative | adaptive
   double duration_s = 12.0;
   double metrics_start_s = 2.0;
-  int iterations = 1;                  // iterative: learning runs before the reported one
-  hw::PlantOptions plant;              // defaults to the seed-calibrated plant
+  int iterations = 1;      // iterative: learning runs before the reported one
+  hw::PlantOptions plant;  // defaults to the seed-calibrated plant
   ServoConfig servo;
   bool friction_feedforward = true;
   // Throws std::invalid_argument naming the field.
@@ -30,12 +30,12 @@ struct TrackOptions {
 };
 
 struct TrackResult {
-  ErrorStats tip;                      // of the reported run
-  std::vector<ErrorStats> per_run;     // iterative: one per run (run 0 uncompensated)
-  double width_estimate_mm = 0.0;      // inverse/adaptive: the width used at the end
-  double lag_estimate_s = 0.0;         // adaptive
+  ErrorStats tip;                   // of the reported run
+  std::vector<ErrorStats> per_run;  // iterative: one per run (run 0 uncompensated)
+  double width_estimate_mm = 0.0;   // inverse/adaptive: the width used at the end
+  double lag_estimate_s = 0.0;      // adaptive
   std::uint64_t limit_faults = 0;
-  std::vector<CycleRecord> records;    // the reported run
+  std::vector<CycleRecord> records;  // the reported run
 };
 
 TrackResult RunTrackExperiment(const TrackOptions& options);

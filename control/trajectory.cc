@@ -18,11 +18,11 @@ struct Keyframe {
   double displacement;
 };
 constexpr std::array<Keyframe, 6> kMitralKeyframes = {{
-    {0.00, 0.00},  // end-diastole (R wave)
-    {0.36, 1.00},  // end of systole: annulus fully towards the apex
-    {0.50, 0.25},  // end of rapid early-diastolic return (e')
-    {0.80, 0.18},  // diastasis: slow drift
-    {0.93, -0.02}, // atrial kick (a') overshoots slightly
+    {0.00, 0.00},   // end-diastole (R wave)
+    {0.36, 1.00},   // end of systole: annulus fully towards the apex
+    {0.50, 0.25},   // end of rapid early-diastolic return (e')
+    {0.80, 0.18},   // diastasis: slow drift
+    {0.93, -0.02},  // atrial kick (a') overshoots slightly
     {1.00, 0.00},
 }};
 
@@ -32,7 +32,8 @@ double MitralShape(double phase) {
     const Keyframe& b = kMitralKeyframes[i + 1];
     if (phase >= a.phase && phase <= b.phase) {
       const double u = (phase - a.phase) / (b.phase - a.phase);
-      return a.displacement + (b.displacement - a.displacement) * 0.5 * (1.0 - std::cos(std::numbers::pi * u));
+      return a.displacement +
+             (b.displacement - a.displacement) * 0.5 * (1.0 - std::cos(std::numbers::pi * u));
     }
   }
   return 0.0;
@@ -146,7 +147,8 @@ std::unique_ptr<Trajectory> MakeTrajectory(const std::string& spec) {
                         : std::make_unique<SineTrajectory>(args[0], args[1]);
   }
   if (kind == "triangle") {
-    if (args.size() != 2) throw std::invalid_argument("trajectory '" + spec + "': expected triangle:AMP_MM:SPEED_MM_S");
+    if (args.size() != 2)
+      throw std::invalid_argument("trajectory '" + spec + "': expected triangle:AMP_MM:SPEED_MM_S");
     return std::make_unique<TriangleTrajectory>(args[0], args[1]);
   }
   if (kind == "mitral") {
@@ -158,8 +160,9 @@ std::unique_ptr<Trajectory> MakeTrajectory(const std::string& spec) {
     }
     return std::make_unique<MitralTrajectory>(o);
   }
-  throw std::invalid_argument("unknown trajectory '" + spec +
-                              "' (expected sine, sine:A:F, triangle:A:V, mitral or mitral:BPM:P2P)");
+  throw std::invalid_argument(
+      "unknown trajectory '" + spec +
+      "' (expected sine, sine:A:F, triangle:A:V, mitral or mitral:BPM:P2P)");
 }
 
 }  // namespace echoservo::control

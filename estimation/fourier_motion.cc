@@ -56,7 +56,8 @@ FourierMotion FourierMotion::FromPeriodSamples(const std::vector<double>& sample
     double a = 0.0;
     double b = 0.0;
     for (std::size_t i = 0; i < n; ++i) {
-      const double ph = 2.0 * std::numbers::pi * k * static_cast<double>(i) / static_cast<double>(n);
+      const double ph =
+          2.0 * std::numbers::pi * k * static_cast<double>(i) / static_cast<double>(n);
       a += samples[i] * std::cos(ph);
       b += samples[i] * std::sin(ph);
     }

@@ -26,7 +26,8 @@ void CatheterConfig::Validate(const std::string& where) const {
           "must be a finite diameter > 0 mm");
   Require(guidewire_od_mm < sheath_id_mm, where, "guidewire_od_mm",
           "must be smaller than sheath_id_mm (the guidewire must fit inside the sheath)");
-  Require(sheath_id_mm < 20.0, where, "sheath_id_mm", "is implausibly large for a catheter (>= 20 mm)");
+  Require(sheath_id_mm < 20.0, where, "sheath_id_mm",
+          "is implausibly large for a catheter (>= 20 mm)");
   Require(std::isfinite(tip_load_n) && tip_load_n >= 0.0 && tip_load_n <= 50.0, where, "tip_load_n",
           "must be a finite normal force in [0, 50] N");
   for (std::size_t i = 0; i < bends.size(); ++i) {

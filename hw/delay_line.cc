@@ -21,8 +21,7 @@ void DelayLine::Push(double value) {
 }
 
 double DelayLine::Delayed(double delay_s) const {
-  const double steps =
-      std::clamp(delay_s / period_s_, 0.0, static_cast<double>(ring_.size() - 2));
+  const double steps = std::clamp(delay_s / period_s_, 0.0, static_cast<double>(ring_.size() - 2));
   const auto whole = static_cast<std::size_t>(steps);
   const double frac = steps - static_cast<double>(whole);
   const std::size_t n = ring_.size();

@@ -9,7 +9,8 @@ namespace echoservo::hw {
 
 void EffectRegistry::Register(const std::string& name, Factory factory) {
   if (name.empty()) throw std::invalid_argument("effect registry: empty effect name");
-  if (Contains(name)) throw std::invalid_argument("effect registry: '" + name + "' registered twice");
+  if (Contains(name))
+    throw std::invalid_argument("effect registry: '" + name + "' registered twice");
   if (!factory) throw std::invalid_argument("effect registry: '" + name + "' has no factory");
   const auto probe = factory();
   if (!probe || probe->name() != name) {
@@ -69,8 +70,8 @@ std::vector<std::string> ParseModelSpec(std::string_view spec, const EffectRegis
     const std::size_t end = std::min(spec.find('+', start), spec.size());
     const std::string token(spec.substr(start, end - start));
     if (token.empty()) {
-      throw std::invalid_argument("model spec '" + std::string(spec) + "': empty effect name at offset " +
-                                  std::to_string(start));
+      throw std::invalid_argument("model spec '" + std::string(spec) +
+                                  "': empty effect name at offset " + std::to_string(start));
     }
     const std::vector<std::string> expanded =
         token == "seed" ? SeedEffects() : std::vector<std::string>{token};

@@ -56,7 +56,8 @@ void HardwareInterface::read(double t_s, double dt_s) {
 
 void HardwareInterface::write(double t_s, double dt_s) {
   RequireState(LifecycleState::kActive, "write()");
-  if (!(std::isfinite(dt_s) && dt_s > 0.0)) throw std::invalid_argument("hardware: write() with dt <= 0");
+  if (!(std::isfinite(dt_s) && dt_s > 0.0))
+    throw std::invalid_argument("hardware: write() with dt <= 0");
   DoWrite(t_s, dt_s);
 }
 

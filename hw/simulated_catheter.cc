@@ -23,19 +23,25 @@ TransmissionModel MakeModel(const PlantOptions& o) {
 void ValidateOptions(const PlantOptions& o) {
   const ActuatorParams& a = o.actuator;
   auto require = [](bool ok, const char* field) {
-    if (!ok) throw std::invalid_argument(std::string("plant options: '") + field + "' must be finite and > 0");
+    if (!ok)
+      throw std::invalid_argument(std::string("plant options: '") + field +
+                                  "' must be finite and > 0");
   };
-  require(std::isfinite(a.force_constant_n_per_a) && a.force_constant_n_per_a > 0, "actuator.force_constant_n_per_a");
+  require(std::isfinite(a.force_constant_n_per_a) && a.force_constant_n_per_a > 0,
+          "actuator.force_constant_n_per_a");
   require(std::isfinite(a.current_limit_a) && a.current_limit_a > 0, "actuator.current_limit_a");
-  require(std::isfinite(a.current_time_constant_s) && a.current_time_constant_s > 0, "actuator.current_time_constant_s");
+  require(std::isfinite(a.current_time_constant_s) && a.current_time_constant_s > 0,
+          "actuator.current_time_constant_s");
   require(std::isfinite(a.moving_mass_kg) && a.moving_mass_kg > 0, "actuator.moving_mass_kg");
   require(std::isfinite(a.travel_mm) && a.travel_mm > 0, "actuator.travel_mm");
-  require(std::isfinite(a.end_stop_stiffness_n_per_mm) && a.end_stop_stiffness_n_per_mm > 0, "actuator.end_stop_stiffness_n_per_mm");
+  require(std::isfinite(a.end_stop_stiffness_n_per_mm) && a.end_stop_stiffness_n_per_mm > 0,
+          "actuator.end_stop_stiffness_n_per_mm");
   require(o.substeps > 0 && o.substeps <= 1000, "substeps");
   const SensorParams& s = o.sensors;
   auto require_sensor = [](double v, const char* field) {
     if (!(std::isfinite(v) && v >= 0.0)) {
-      throw std::invalid_argument(std::string("plant options: '") + field + "' must be finite and >= 0");
+      throw std::invalid_argument(std::string("plant options: '") + field +
+                                  "' must be finite and >= 0");
     }
   };
   require_sensor(s.tip_noise_mm, "sensors.tip_noise_mm");

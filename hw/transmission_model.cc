@@ -49,8 +49,8 @@ void TransmissionModel::set_parameters(const std::vector<double>& values) {
   for (std::size_t i = 0; i < values.size(); ++i) {
     const ParameterSpec& s = info_[i].spec;
     if (!std::isfinite(values[i]) || values[i] < s.lower || values[i] > s.upper) {
-      throw std::invalid_argument("model parameter '" + info_[i].qualified_name + "' = " +
-                                  std::to_string(values[i]) + " is outside [" +
+      throw std::invalid_argument("model parameter '" + info_[i].qualified_name +
+                                  "' = " + std::to_string(values[i]) + " is outside [" +
                                   std::to_string(s.lower) + ", " + std::to_string(s.upper) + "] " +
                                   s.unit);
     }

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -15,8 +16,6 @@
 #include <unordered_set>
 #include <utility>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "hw/trial.h"
 
@@ -130,7 +129,7 @@ CsvColumns ReadCsv(const fs::path& path) {
   bool have_header = false;
   std::size_t t_col = 0;
   std::optional<std::size_t> blank_line;  // first blank line after the header, if any
-  std::size_t prev_line_no = 0;            // line of the previous sample
+  std::size_t prev_line_no = 0;           // line of the previous sample
 
   while (std::getline(in, line)) {
     ++line_no;
@@ -144,21 +143,24 @@ CsvColumns ReadCsv(const fs::path& path) {
         continue;
       }
       if (line_no != 1) {
-        FailLine(path, line_no, "the header line must be the first line (found blank lines before it)");
+        FailLine(path, line_no,
+                 "the header line must be the first line (found blank lines before it)");
       }
       std::unordered_set<std::string_view> seen;  // views into `line`, alive for this block
       std::size_t pos = 0;
       while (true) {
         const std::size_t comma = view.find(',', pos);
-        const std::string_view name =
-            Trim(view.substr(pos, comma == std::string_view::npos ? std::string_view::npos : comma - pos));
+        const std::string_view name = Trim(view.substr(
+            pos, comma == std::string_view::npos ? std::string_view::npos : comma - pos));
         const std::size_t index = csv.names.size() + 1;
         if (name.empty()) {
-          FailLine(path, line_no, "column " + std::to_string(index) + " of the header has an empty name");
+          FailLine(path, line_no,
+                   "column " + std::to_string(index) + " of the header has an empty name");
         }
         if (!seen.insert(name).second) {
-          FailLine(path, line_no, "duplicate column name " + Quote(name) + " (column " +
-                                      std::to_string(index) + ")");
+          FailLine(
+              path, line_no,
+              "duplicate column name " + Quote(name) + " (column " + std::to_string(index) + ")");
         }
         csv.names.emplace_back(name);
         if (comma == std::string_view::npos) break;
@@ -172,11 +174,13 @@ CsvColumns ReadCsv(const fs::path& path) {
         }
       }
       if (n_missing > 0) {
-        FailLine(path, line_no, std::string(n_missing == 1 ? "missing required column " : "missing required columns ") +
-                                    missing + " (required: t,base_cmd,base,tip,force, in any order)");
+        FailLine(
+            path, line_no,
+            std::string(n_missing == 1 ? "missing required column " : "missing required columns ") +
+                missing + " (required: t,base_cmd,base,tip,force, in any order)");
       }
-      t_col = static_cast<std::size_t>(
-          std::find(csv.names.begin(), csv.names.end(), "t") - csv.names.begin());
+      t_col = static_cast<std::size_t>(std::find(csv.names.begin(), csv.names.end(), "t") -
+                                       csv.names.begin());
       csv.values.resize(csv.names.size());
       fields.resize(csv.names.size());
       have_header = true;
@@ -188,7 +192,8 @@ CsvColumns ReadCsv(const fs::path& path) {
       continue;
     }
     if (blank_line) {
-      FailLine(path, *blank_line, "empty line inside the data (only trailing empty lines are allowed)");
+      FailLine(path, *blank_line,
+               "empty line inside the data (only trailing empty lines are allowed)");
     }
 
     // Split without allocating per field; stop counting into `fields` once it is full.
@@ -197,16 +202,17 @@ CsvColumns ReadCsv(const fs::path& path) {
     while (true) {
       const std::size_t comma = view.find(',', pos);
       if (count < fields.size()) {
-        fields[count] =
-            view.substr(pos, comma == std::string_view::npos ? std::string_view::npos : comma - pos);
+        fields[count] = view.substr(
+            pos, comma == std::string_view::npos ? std::string_view::npos : comma - pos);
       }
       ++count;
       if (comma == std::string_view::npos) break;
       pos = comma + 1;
     }
     if (count != fields.size()) {
-      FailLine(path, line_no, "expected " + std::to_string(fields.size()) + " fields (as in the header), found " +
-                                  std::to_string(count));
+      FailLine(path, line_no,
+               "expected " + std::to_string(fields.size()) + " fields (as in the header), found " +
+                   std::to_string(count));
     }
 
     for (std::size_t c = 0; c < fields.size(); ++c) {
@@ -219,15 +225,17 @@ CsvColumns ReadCsv(const fs::path& path) {
           case NumberStatus::kNonFinite:
             FailLine(path, line_no, column + "NaN or infinity is not allowed: " + Quote(field));
           case NumberStatus::kOutOfRange:
-            FailLine(path, line_no, column + "number out of the range of a double: " + Quote(field));
+            FailLine(path, line_no,
+                     column + "number out of the range of a double: " + Quote(field));
           default:
             FailLine(path, line_no, column + "not a number: " + Quote(field));
         }
       }
       if (c == t_col && !csv.values[c].empty() && !(v > csv.values[c].back())) {
-        FailLine(path, line_no, "column 't': times must be strictly increasing (t = " + FormatNumber(v) +
-                                    " s is not after t = " + FormatNumber(csv.values[c].back()) +
-                                    " s on line " + std::to_string(prev_line_no) + ")");
+        FailLine(path, line_no,
+                 "column 't': times must be strictly increasing (t = " + FormatNumber(v) +
+                     " s is not after t = " + FormatNumber(csv.values[c].back()) + " s on line " +
+                     std::to_string(prev_line_no) + ")");
       }
       csv.values[c].push_back(v);
     }
@@ -305,7 +313,8 @@ CatheterConfig ParseGeometry(const fs::path& path, const Json& j) {
     }
     for (const auto& [k, v] : b.items()) {
       if (k != "angle_deg" && k != "radius_mm") {
-        Fail(path, "key '" + key + "." + k + "' is unknown (a bend has only angle_deg and radius_mm)");
+        Fail(path,
+             "key '" + key + "." + k + "' is unknown (a bend has only angle_deg and radius_mm)");
       }
     }
     Bend bend;
@@ -347,8 +356,11 @@ void ReadJson(const fs::path& path, Trial& trial) {
 void ValidateForWrite(const fs::path& csv_path, const fs::path& json_path, const Trial& trial) {
   const std::size_t n = trial.t_s.size();
   const std::pair<const char*, const std::vector<double>*> required[] = {
-      {"t", &trial.t_s},       {"base_cmd", &trial.base_cmd_mm}, {"base", &trial.base_mm},
-      {"tip", &trial.tip_mm}, {"force", &trial.force_n}};
+      {"t", &trial.t_s},
+      {"base_cmd", &trial.base_cmd_mm},
+      {"base", &trial.base_mm},
+      {"tip", &trial.tip_mm},
+      {"force", &trial.force_n}};
   if (trial.extra_names.size() != trial.extra_columns.size()) {
     FailWrite(csv_path, std::to_string(trial.extra_names.size()) + " extra column names but " +
                             std::to_string(trial.extra_columns.size()) + " extra columns");
@@ -363,8 +375,9 @@ void ValidateForWrite(const fs::path& csv_path, const fs::path& json_path, const
     const std::string& name = trial.extra_names[i];
     if (name.empty() || Trim(name) != name || name.find_first_of(",\r\n") != std::string::npos ||
         name.starts_with(kUtf8Bom)) {
-      FailWrite(csv_path, "extra column name " + Quote(name) +
-                              " must be non-empty, without commas, line breaks or surrounding whitespace");
+      FailWrite(csv_path,
+                "extra column name " + Quote(name) +
+                    " must be non-empty, without commas, line breaks or surrounding whitespace");
     }
     if (!seen.insert(name).second) FailWrite(csv_path, "duplicate column name " + Quote(name));
     columns.emplace_back(name, &trial.extra_columns[i]);
@@ -477,7 +490,8 @@ std::vector<Trial> ReadDataset(const fs::path& dir) {
   for (const fs::path& csv : csvs) {
     std::error_code json_ec;
     if (!fs::is_regular_file(SiblingJson(csv), json_ec)) {
-      Fail(csv, "has no sibling JSON " + SiblingJson(csv).filename().string() + " in the dataset folder");
+      Fail(csv, "has no sibling JSON " + SiblingJson(csv).filename().string() +
+                    " in the dataset folder");
     }
   }
   std::vector<Trial> trials;

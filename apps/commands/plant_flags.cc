@@ -22,8 +22,9 @@ void AddPlantFlags(CLI::App* app, PlantFlags& flags) {
   app->add_option("--effects", flags.effects,
                   "Effects of the simulated catheter as a model SPEC, e.g. seed+capstan_friction "
                   "(see `echoservo sim effects`)");
-  app->add_option("--set", flags.sets,
-                  "Override an effect parameter, e.g. --set deadzone_traversal.tau_s=0.01 (repeatable)");
+  app->add_option(
+      "--set", flags.sets,
+      "Override an effect parameter, e.g. --set deadzone_traversal.tau_s=0.01 (repeatable)");
   app->add_option("--seed", flags.seed, "Sensor-noise seed");
 }
 

@@ -39,9 +39,12 @@ void RunRecord(const RecordFlags& f) {
   o.duration_s = f.duration_s;
   const control::RecordResult r = control::RecordDataset(o);
   if (f.json) {
-    std::cout << nlohmann::json{{"out", f.out}, {"trials", r.trials}, {"samples", r.samples}}.dump(2) << "\n";
+    std::cout << nlohmann::json{{"out", f.out}, {"trials", r.trials}, {"samples", r.samples}}.dump(
+                     2)
+              << "\n";
   } else {
-    std::cout << "wrote " << r.trials.size() << " trials (" << r.samples << " samples) to " << f.out << "\n";
+    std::cout << "wrote " << r.trials.size() << " trials (" << r.samples << " samples) to " << f.out
+              << "\n";
   }
 }
 
@@ -52,14 +55,20 @@ void RunEffects(bool json) {
     const auto effect = registry.Create(name);
     nlohmann::json params = nlohmann::json::array();
     for (const hw::ParameterSpec& p : effect->parameters()) {
-      params.push_back({{"name", p.name}, {"unit", p.unit}, {"default", p.default_value},
-                        {"lower", p.lower}, {"upper", p.upper}, {"doc", p.doc}});
+      params.push_back({{"name", p.name},
+                        {"unit", p.unit},
+                        {"default", p.default_value},
+                        {"lower", p.lower},
+                        {"upper", p.upper},
+                        {"doc", p.doc}});
     }
-    out.push_back({{"name", name}, {"stage", std::string(hw::ToString(effect->stage()))},
+    out.push_back({{"name", name},
+                   {"stage", std::string(hw::ToString(effect->stage()))},
                    {"description", std::string(effect->description())},
-                   {"signature", std::string(effect->signature())}, {"parameters", params},
-                   {"in_seed_model", std::find(hw::SeedEffects().begin(), hw::SeedEffects().end(), name) !=
-                                         hw::SeedEffects().end()}});
+                   {"signature", std::string(effect->signature())},
+                   {"parameters", params},
+                   {"in_seed_model", std::find(hw::SeedEffects().begin(), hw::SeedEffects().end(),
+                                               name) != hw::SeedEffects().end()}});
   }
   if (json) {
     std::cout << nlohmann::json{{"effects", out}}.dump(2) << "\n";
@@ -68,11 +77,13 @@ void RunEffects(bool json) {
   for (const auto& e : out) {
     std::cout << e["name"].get<std::string>() << "  [" << e["stage"].get<std::string>() << "]"
               << (e["in_seed_model"].get<bool>() ? "  (seed)" : "") << "\n  "
-              << e["description"].get<std::string>() << "\n  in data: " << e["signature"].get<std::string>() << "\n";
+              << e["description"].get<std::string>()
+              << "\n  in data: " << e["signature"].get<std::string>() << "\n";
     for (const auto& p : e["parameters"]) {
       std::cout << "    " << p["name"].get<std::string>() << " [" << p["unit"].get<std::string>()
-                << "] default " << p["default"].get<double>() << ", bounds [" << p["lower"].get<double>() << ", "
-                << p["upper"].get<double>() << "]: " << p["doc"].get<std::string>() << "\n";
+                << "] default " << p["default"].get<double>() << ", bounds ["
+                << p["lower"].get<double>() << ", " << p["upper"].get<double>()
+                << "]: " << p["doc"].get<std::string>() << "\n";
     }
     std::cout << "\n";
   }
@@ -82,11 +93,15 @@ void RunEffects(bool json) {
 
 void AddSimRecord(CLI::App* sim) {
   auto flags = std::make_shared<RecordFlags>();
-  auto* cmd = sim->add_subcommand("record", "Run chosen configurations/trajectories/effects and write a dataset in the trial format");
+  auto* cmd = sim->add_subcommand(
+      "record",
+      "Run chosen configurations/trajectories/effects and write a dataset in the trial format");
   cmd->add_option("--out", flags->out, "Output folder (created)")->required();
-  cmd->add_option("--configs", flags->configs, "table1 (24 Table I configurations) | seed (the tracking catheter)");
-  cmd->add_option("--trajectories", flags->trajectories,
-                  "Comma-separated trajectory specs: sine, sine:A:F, triangle:A:V, mitral, mitral:BPM:P2P");
+  cmd->add_option("--configs", flags->configs,
+                  "table1 (24 Table I configurations) | seed (the tracking catheter)");
+  cmd->add_option(
+      "--trajectories", flags->trajectories,
+      "Comma-separated trajectory specs: sine, sine:A:F, triangle:A:V, mitral, mitral:BPM:P2P");
   cmd->add_option("--tip-loads", flags->tip_loads, "Comma-separated tip loads (N)");
   cmd->add_option("--compensation", flags->compensation, "none | inverse | adaptive");
   cmd->add_option("--duration", flags->duration_s, "Length of each trial (s)");
@@ -97,7 +112,8 @@ void AddSimRecord(CLI::App* sim) {
 
 void AddSimEffects(CLI::App* sim) {
   auto json = std::make_shared<bool>(false);
-  auto* cmd = sim->add_subcommand("effects", "List the catalog of catheter effects with their physics and parameters");
+  auto* cmd = sim->add_subcommand(
+      "effects", "List the catalog of catheter effects with their physics and parameters");
   cmd->add_flag("--json", *json, "Print JSON");
   cmd->callback([json] { RunEffects(*json); });
 }

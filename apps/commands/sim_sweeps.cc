@@ -45,7 +45,8 @@ void RunFriction(const SweepFlags& f) {
   nlohmann::json out = nlohmann::json::array();
   for (const auto& r : results) {
     nlohmann::json samples = nlohmann::json::array();
-    for (const auto& s : r.samples) samples.push_back({{"velocity_mm_s", s.velocity_mm_s}, {"force_n", s.force_n}});
+    for (const auto& s : r.samples)
+      samples.push_back({{"velocity_mm_s", s.velocity_mm_s}, {"force_n", s.force_n}});
     out.push_back({{"config", ConfigJson(r.config)},
                    {"coulomb_n", r.fit.coulomb_n},
                    {"coulomb_sd_n", r.fit.coulomb_sd_n},
@@ -59,13 +60,17 @@ void RunFriction(const SweepFlags& f) {
     std::cout << nlohmann::json{{"configs", out}}.dump(2) << "\n";
     return;
   }
-  std::cout << "Friction vs velocity, constant-velocity strokes in both directions; fit F = Fc*sign(v) + b*v\n"
-               "(seed: ~1.0 N Coulomb + 0.006 N/(mm/s) viscous; bend angle matters, radius does not)\n\n";
-  Table t({"sheath_id", "gw_od", "gap", "bend_deg", "radius", "Fc_N", "sd", "b_N/(mm/s)", "sd", "rms_N"});
+  std::cout
+      << "Friction vs velocity, constant-velocity strokes in both directions; fit F = Fc*sign(v) + "
+         "b*v\n"
+         "(seed: ~1.0 N Coulomb + 0.006 N/(mm/s) viscous; bend angle matters, radius does not)\n\n";
+  Table t({"sheath_id", "gw_od", "gap", "bend_deg", "radius", "Fc_N", "sd", "b_N/(mm/s)", "sd",
+           "rms_N"});
   for (const auto& r : results) {
-    t.AddRow({Fixed(r.config.sheath_id_mm, 2), Fixed(r.config.guidewire_od_mm, 2), Fixed(r.config.GapMm(), 2),
-              Fixed(r.config.bends.front().angle_deg, 0), Fixed(r.config.bends.front().radius_mm, 0),
-              Fixed(r.fit.coulomb_n, 3), Fixed(r.fit.coulomb_sd_n, 3), Fixed(r.fit.viscous_n_per_mm_s, 4),
+    t.AddRow({Fixed(r.config.sheath_id_mm, 2), Fixed(r.config.guidewire_od_mm, 2),
+              Fixed(r.config.GapMm(), 2), Fixed(r.config.bends.front().angle_deg, 0),
+              Fixed(r.config.bends.front().radius_mm, 0), Fixed(r.fit.coulomb_n, 3),
+              Fixed(r.fit.coulomb_sd_n, 3), Fixed(r.fit.viscous_n_per_mm_s, 4),
               Fixed(r.fit.viscous_sd_n_per_mm_s, 4), Fixed(r.fit.rms_n, 3)});
   }
   t.Print(std::cout);
@@ -89,17 +94,19 @@ void RunBacklash(const SweepFlags& f) {
               << "\n";
     return;
   }
-  std::cout << "Backlash: hysteresis width of tip vs base on a 5 mm, 1 Hz sine, against B = theta*gap\n\n";
-  Table t({"sheath_id", "gw_od", "gap", "bend_deg", "radius", "measured_mm", "theta*gap_mm", "error_mm"});
+  std::cout << "Backlash: hysteresis width of tip vs base on a 5 mm, 1 Hz sine, against B = "
+               "theta*gap\n\n";
+  Table t({"sheath_id", "gw_od", "gap", "bend_deg", "radius", "measured_mm", "theta*gap_mm",
+           "error_mm"});
   for (const auto& c : r.configs) {
-    t.AddRow({Fixed(c.config.sheath_id_mm, 2), Fixed(c.config.guidewire_od_mm, 2), Fixed(c.config.GapMm(), 2),
-              Fixed(c.config.bends.front().angle_deg, 0), Fixed(c.config.bends.front().radius_mm, 0),
-              Fixed(c.measured_width_mm, 3), Fixed(c.model_width_mm, 3),
-              Fixed(c.model_width_mm - c.measured_width_mm, 3)});
+    t.AddRow({Fixed(c.config.sheath_id_mm, 2), Fixed(c.config.guidewire_od_mm, 2),
+              Fixed(c.config.GapMm(), 2), Fixed(c.config.bends.front().angle_deg, 0),
+              Fixed(c.config.bends.front().radius_mm, 0), Fixed(c.measured_width_mm, 3),
+              Fixed(c.model_width_mm, 3), Fixed(c.model_width_mm - c.measured_width_mm, 3)});
   }
   t.Print(std::cout);
-  std::cout << "\nmodel B = theta*gap: RMS error " << Fixed(r.rms_error_mm, 3) << " mm, r^2 " << Fixed(r.r2, 3)
-            << "   (seed, measured: RMS 0.4 mm, r^2 0.93)\n";
+  std::cout << "\nmodel B = theta*gap: RMS error " << Fixed(r.rms_error_mm, 3) << " mm, r^2 "
+            << Fixed(r.r2, 3) << "   (seed, measured: RMS 0.4 mm, r^2 0.93)\n";
 }
 
 void RunCalibrate(const SweepFlags& f) {
@@ -120,7 +127,8 @@ void RunCalibrate(const SweepFlags& f) {
   const double truth_width = plant.model().BacklashWidthMm();
   if (f.json) {
     nlohmann::json samples = nlohmann::json::array();
-    for (const auto& s : r.friction_samples) samples.push_back({{"velocity_mm_s", s.velocity_mm_s}, {"force_n", s.force_n}});
+    for (const auto& s : r.friction_samples)
+      samples.push_back({{"velocity_mm_s", s.velocity_mm_s}, {"force_n", s.force_n}});
     std::cout << nlohmann::json{{"config", ConfigJson(config)},
                                 {"coulomb_n", r.friction.coulomb_n},
                                 {"coulomb_sd_n", r.friction.coulomb_sd_n},
@@ -128,17 +136,18 @@ void RunCalibrate(const SweepFlags& f) {
                                 {"viscous_sd_n_per_mm_s", r.friction.viscous_sd_n_per_mm_s},
                                 {"backlash_width_mm", r.backlash.width_mm},
                                 {"samples", samples},
-                                {"truth", {{"friction_level_n", truth_friction},
-                                           {"viscous_n_per_mm_s", truth_viscous},
-                                           {"deadzone_width_mm", truth_width}}}}
+                                {"truth",
+                                 {{"friction_level_n", truth_friction},
+                                  {"viscous_n_per_mm_s", truth_viscous},
+                                  {"deadzone_width_mm", truth_width}}}}
                      .dump(2)
               << "\n";
     return;
   }
   std::cout << "Calibration by probing motions on the seed's tracking catheter (simulated)\n\n";
   Table t({"quantity", "estimate", "sd", "simulator truth"});
-  t.AddRow({"Coulomb friction (N)", Fixed(r.friction.coulomb_n, 3), Fixed(r.friction.coulomb_sd_n, 3),
-            Fixed(truth_friction, 3)});
+  t.AddRow({"Coulomb friction (N)", Fixed(r.friction.coulomb_n, 3),
+            Fixed(r.friction.coulomb_sd_n, 3), Fixed(truth_friction, 3)});
   t.AddRow({"viscous (N/(mm/s))", Fixed(r.friction.viscous_n_per_mm_s, 4),
             Fixed(r.friction.viscous_sd_n_per_mm_s, 4), Fixed(truth_viscous, 4)});
   t.AddRow({"hysteresis width (mm)", Fixed(r.backlash.width_mm, 3), "-",
@@ -174,8 +183,9 @@ void AddSimSweeps(CLI::App* sim) {
                              "Estimate friction and backlash width from short probing motions (the "
                              "seed's calibration), by default on the seed's tracking catheter",
                              RunCalibrate, flags);
-  calibrate->add_option("--catheter", flags->catheter,
-                        "Catheter geometry JSON (sheath_id_mm, guidewire_od_mm, bends, tip_load_n)");
+  calibrate->add_option(
+      "--catheter", flags->catheter,
+      "Catheter geometry JSON (sheath_id_mm, guidewire_od_mm, bends, tip_load_n)");
 }
 
 }  // namespace echoservo::apps

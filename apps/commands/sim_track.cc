@@ -63,7 +63,8 @@ nlohmann::json RunOne(const TrackFlags& f, const std::string& trajectory,
                       {"samples", r.tip.samples},
                       {"metrics_window_s", {f.metrics_start_s, f.duration_s}},
                       {"limit_faults", r.limit_faults}};
-  if (compensation == "inverse" || compensation == "adaptive") j["width_estimate_mm"] = r.width_estimate_mm;
+  if (compensation == "inverse" || compensation == "adaptive")
+    j["width_estimate_mm"] = r.width_estimate_mm;
   if (compensation == "adaptive") j["lag_estimate_s"] = r.lag_estimate_s;
   if (!r.per_run.empty()) {
     nlohmann::json runs = nlohmann::json::array();
@@ -95,7 +96,8 @@ nlohmann::json RunOne(const TrackFlags& f, const std::string& trajectory,
     }
     trial.extra_names = {"reference"};
     trial.extra_columns.emplace_back();
-    for (const control::CycleRecord& c : r.records) trial.extra_columns[0].push_back(c.reference_mm);
+    for (const control::CycleRecord& c : r.records)
+      trial.extra_columns[0].push_back(c.reference_mm);
     hw::WriteTrial(f.record_dir, trial);
     j["recorded"] = (std::filesystem::path(f.record_dir) / (trial.name + ".csv")).string();
   }
@@ -103,8 +105,9 @@ nlohmann::json RunOne(const TrackFlags& f, const std::string& trajectory,
 }
 
 void Run(const TrackFlags& f) {
-  const std::vector<std::string> trajectories =
-      f.trajectory == "all" ? std::vector<std::string>{"sine", "mitral"} : SplitList(f.trajectory, "--trajectory");
+  const std::vector<std::string> trajectories = f.trajectory == "all"
+                                                    ? std::vector<std::string>{"sine", "mitral"}
+                                                    : SplitList(f.trajectory, "--trajectory");
   const std::vector<std::string> compensations =
       f.compensation == "all" ? std::vector<std::string>{"none", "inverse", "iterative", "adaptive"}
                               : SplitList(f.compensation, "--compensation");
@@ -113,31 +116,38 @@ void Run(const TrackFlags& f) {
     for (const std::string& c : compensations) results.push_back(RunOne(f, t, c));
   }
   if (f.json) {
-    std::cout << (results.size() == 1 ? results[0] : nlohmann::json{{"results", results}}).dump(2) << "\n";
+    std::cout << (results.size() == 1 ? results[0] : nlohmann::json{{"results", results}}).dump(2)
+              << "\n";
     return;
   }
   std::cout << (f.catheter.empty()
-                    ? "Tip tracking on the seed-calibrated catheter (0.8 mm guidewire in a 1.6 mm sheath,\n"
+                    ? "Tip tracking on the seed-calibrated catheter (0.8 mm guidewire in a 1.6 mm "
+                      "sheath,\n"
                       "two 90 deg bends, tip seal)"
-                    : "Tip tracking on the seed-calibrated plant with the catheter of " + f.catheter)
-            << "; error = reference - measured tip over t in ["
-            << f.metrics_start_s << ", " << f.duration_s << "] s\n\n";
+                    : "Tip tracking on the seed-calibrated plant with the catheter of " +
+                          f.catheter)
+            << "; error = reference - measured tip over t in [" << f.metrics_start_s << ", "
+            << f.duration_s << "] s\n\n";
   Table table({"trajectory", "compensation", "mae_mm", "rms_mm", "max_mm", "seed_mae_mm", "ratio"});
   for (const auto& j : results) {
     const bool has_seed = !j["seed_published_mae_mm"].is_null();
     auto num = [&](const char* key, int decimals) { return Fixed(j[key].get<double>(), decimals); };
     table.AddRow({j["trajectory"].get<std::string>(), j["compensation"].get<std::string>(),
                   num("mae_mm", 3), num("rms_mm", 3), num("max_mm", 3),
-                  has_seed ? num("seed_published_mae_mm", 2) : "-", has_seed ? num("ratio_to_seed", 2) : "-"});
+                  has_seed ? num("seed_published_mae_mm", 2) : "-",
+                  has_seed ? num("ratio_to_seed", 2) : "-"});
   }
   table.Print(std::cout);
   for (const auto& j : results) {
     if (j.contains("runs")) {
-      std::cout << "\n" << j["trajectory"].get<std::string>() << " iterative, MAE per run (run 0 uncompensated):";
+      std::cout << "\n"
+                << j["trajectory"].get<std::string>()
+                << " iterative, MAE per run (run 0 uncompensated):";
       for (const auto& r : j["runs"]) std::cout << " " << Fixed(r["mae_mm"].get<double>(), 3);
       std::cout << "\n";
     }
-    if (j.contains("recorded")) std::cout << "recorded " << j["recorded"].get<std::string>() << "\n";
+    if (j.contains("recorded"))
+      std::cout << "recorded " << j["recorded"].get<std::string>() << "\n";
   }
 }
 
@@ -145,10 +155,13 @@ void Run(const TrackFlags& f) {
 
 void AddSimTrack(CLI::App* sim) {
   auto flags = std::make_shared<TrackFlags>();
-  auto* cmd = sim->add_subcommand("track", "The seed's tip-tracking experiment: tip MAE/RMS/max (mm)");
+  auto* cmd =
+      sim->add_subcommand("track", "The seed's tip-tracking experiment: tip MAE/RMS/max (mm)");
   cmd->add_option("--trajectory", flags->trajectory,
-                  "sine | mitral | all, or a spec such as sine:5:1, mitral:72:14 (comma-separated list allowed)");
-  cmd->add_option("--compensation", flags->compensation, "none | inverse | iterative | adaptive | all");
+                  "sine | mitral | all, or a spec such as sine:5:1, mitral:72:14 (comma-separated "
+                  "list allowed)");
+  cmd->add_option("--compensation", flags->compensation,
+                  "none | inverse | iterative | adaptive | all");
   cmd->add_option("--duration", flags->duration_s, "Run length (s)");
   cmd->add_option("--metrics-start", flags->metrics_start_s, "Start of the metrics window (s)");
   cmd->add_option("--iterations", flags->iterations,
@@ -156,7 +169,8 @@ void AddSimTrack(CLI::App* sim) {
   cmd->add_option("--catheter", flags->catheter,
                   "Catheter geometry JSON (sheath_id_mm, guidewire_od_mm, bends, tip_load_n); "
                   "default: the seed's tracking catheter");
-  cmd->add_option("--record", flags->record_dir, "Write the reported run(s) as trials into this folder");
+  cmd->add_option("--record", flags->record_dir,
+                  "Write the reported run(s) as trials into this folder");
   cmd->add_flag("--json", flags->json, "Print JSON");
   AddPlantFlags(cmd, flags->plant);
   cmd->callback([flags] { Run(*flags); });

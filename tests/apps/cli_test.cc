@@ -1,6 +1,7 @@
 // End-to-end tests of the echoservo command line: the binary is run as a user would
 // run it, its JSON parsed, and bad input checked for a clear error and a failing exit.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
@@ -9,7 +10,6 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
-#include <sys/wait.h>
 
 #include "hw/effect_registry.h"
 #include "hw/trial.h"
@@ -99,12 +99,12 @@ TEST(Cli, TrackAllPrintsEveryCombination) {
 TEST(Cli, TrackEffectsAndSetChangeThePlant) {
   // Doubling the geometric deadzone's gap is not possible from the CLI, but removing the
   // deadzone is: without backlash the uncompensated error collapses far below B/2.
-  const Result r = RunCli(
-      "sim track --compensation none --effects coulomb_friction+viscous_friction --json");
+  const Result r =
+      RunCli("sim track --compensation none --effects coulomb_friction+viscous_friction --json");
   ASSERT_EQ(r.rc, 0) << r.err;
   EXPECT_LT(nlohmann::json::parse(r.out)["mae_mm"].get<double>(), 0.3);
-  const Result slow = RunCli(
-      "sim track --compensation none --set deadzone_traversal.tau_s=0.05 --json");
+  const Result slow =
+      RunCli("sim track --compensation none --set deadzone_traversal.tau_s=0.05 --json");
   ASSERT_EQ(slow.rc, 0) << slow.err;
   EXPECT_GT(nlohmann::json::parse(slow.out)["mae_mm"].get<double>(), 1.3);
 }
@@ -184,7 +184,8 @@ TEST(Cli, CatheterFileIsStrict) {
   const Result w = RunCli("sim calibrate --catheter " + wide.string());
   EXPECT_NE(w.rc, 0);
   EXPECT_NE(w.err.find("guidewire_od_mm"), std::string::npos) << w.err;
-  EXPECT_NE(RunCli("sim track --catheter " + (dir.path() / "missing.json").string()).err.find("not found"),
+  EXPECT_NE(RunCli("sim track --catheter " + (dir.path() / "missing.json").string())
+                .err.find("not found"),
             std::string::npos);
 }
 
@@ -211,15 +212,15 @@ INSTANTIATE_TEST_SUITE_P(
                       BadInput{"sim track --effects seed+warp_drive", "warp_drive"},
                       BadInput{"sim track --effects seed+seed", "named twice"},
                       BadInput{"sim track --set backlash=1", "--set"},
-                      BadInput{"sim track --set deadzone_traversal.tau_s=-1", "deadzone_traversal.tau_s"},
+                      BadInput{"sim track --set deadzone_traversal.tau_s=-1",
+                               "deadzone_traversal.tau_s"},
                       BadInput{"sim track --set capstan_friction.mu=1e999", "capstan_friction.mu"},
                       BadInput{"sim track --set nosuch_effect.x=1", "nosuch_effect.x"},
                       BadInput{"sim track --iterations 0", "--iterations"},
                       BadInput{"sim backlash --tip-load -1", "tip_load_n"},
                       BadInput{"sim record --out /tmp/x --tip-loads 1,,2", "--tip-loads"},
                       BadInput{"sim record --out /tmp/x --configs mars", "--configs"},
-                      BadInput{"sim record", "--out"},
-                      BadInput{"sim nosuch", "subcommand"}));
+                      BadInput{"sim record", "--out"}, BadInput{"sim nosuch", "subcommand"}));
 
 }  // namespace
 }  // namespace echoservo

@@ -22,7 +22,10 @@ constexpr double kDt = 1e-3;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 CompensatorInput At(const Trajectory& reference, std::size_t k, double tip = 0.0) {
-  return {.t_s = static_cast<double>(k) * kDt, .cycle = k, .period_s = kDt, .reference = &reference,
+  return {.t_s = static_cast<double>(k) * kDt,
+          .cycle = k,
+          .period_s = kDt,
+          .reference = &reference,
           .tip_measured_mm = tip};
 }
 
@@ -44,7 +47,7 @@ TEST(DirectionTrackerTest, SwitchesOnceOutsideTheDeadBand) {
   EXPECT_EQ(d.Update(0.4, &switched), 0.0);  // not yet moved
   EXPECT_FALSE(switched);
   EXPECT_EQ(d.Update(0.6, &switched), 1.0);
-  EXPECT_FALSE(switched);  // the first direction is not a switch
+  EXPECT_FALSE(switched);                     // the first direction is not a switch
   EXPECT_EQ(d.Update(-0.4, &switched), 1.0);  // inside the dead band: keep
   EXPECT_FALSE(switched);
   EXPECT_EQ(d.Update(-0.6, &switched), -1.0);
@@ -108,7 +111,8 @@ TEST(StaticInverseTest, ZeroWidthIsTheIdentity) {
   const SineTrajectory sine(5.0, 1.0);
   StaticInverse inv(0.0, 60000.0);
   for (std::size_t k = 0; k < 1000; k += 7) {
-    EXPECT_EQ(inv.Calc(At(sine, k)).position_mm, sine.Evaluate(static_cast<double>(k) * kDt).position_mm);
+    EXPECT_EQ(inv.Calc(At(sine, k)).position_mm,
+              sine.Evaluate(static_cast<double>(k) * kDt).position_mm);
   }
 }
 
@@ -145,7 +149,8 @@ TEST(IterativeInverseTest, LearnRejectsNonFiniteErrors) {
   ilc.Learn({0.1, 0.2});
   const std::vector<double> before = ilc.correction_mm();
   EXPECT_THROW(ilc.Learn({1.0, kNaN, 1.0}), std::invalid_argument);
-  EXPECT_THROW(ilc.Learn({1.0, 1.0, std::numeric_limits<double>::infinity()}), std::invalid_argument);
+  EXPECT_THROW(ilc.Learn({1.0, 1.0, std::numeric_limits<double>::infinity()}),
+               std::invalid_argument);
   EXPECT_EQ(ilc.correction_mm(), before);
 }
 
@@ -185,7 +190,8 @@ TEST(IterativeInverseTest, OneUnitGainPassCancelsAStaticOffset) {
 
 TEST(IterativeInverseTest, RejectsInvalidGain) {
   for (double g : {0.0, -0.5, 2.01, kNaN}) {
-    EXPECT_THROW(IterativeInverse(IterativeOptions{.learning_gain = g}), std::invalid_argument) << g;
+    EXPECT_THROW(IterativeInverse(IterativeOptions{.learning_gain = g}), std::invalid_argument)
+        << g;
   }
   EXPECT_NO_THROW(IterativeInverse(IterativeOptions{.learning_gain = 2.0}));
 }
@@ -211,7 +217,8 @@ struct AdaptiveRun {
 // Runs the adaptive inverse in closed loop with the synthetic plant; at cycle
 // `outlier_cycle` the measured tip is off by `outlier_mm`.
 AdaptiveRun RunAdaptive(AdaptiveOptions o, double w_true, double tau_true, double seconds,
-                        std::size_t outlier_cycle = static_cast<std::size_t>(-1), double outlier_mm = 0.0) {
+                        std::size_t outlier_cycle = static_cast<std::size_t>(-1),
+                        double outlier_mm = 0.0) {
   const SineTrajectory sine(5.0, 1.0);
   AdaptiveInverse comp(o);
   comp.Reset();
@@ -296,7 +303,8 @@ TEST(AdaptiveInverseTest, ResetRestoresTheInitialEstimates) {
   EXPECT_EQ(comp.name(), "adaptive");
   EXPECT_EQ(comp.width_mm(), 0.7);
   DeadzoneLagPlant plant{1.5, 0.01};
-  for (std::size_t k = 0; k < 3000; ++k) plant.Step(comp.Calc(At(sine, k, plant.tip_mm)).position_mm, kDt);
+  for (std::size_t k = 0; k < 3000; ++k)
+    plant.Step(comp.Calc(At(sine, k, plant.tip_mm)).position_mm, kDt);
   EXPECT_NE(comp.width_mm(), 0.7);
   comp.Reset();
   EXPECT_EQ(comp.width_mm(), 0.7);

@@ -45,7 +45,8 @@ class CheckedLimiter {
     EXPECT_GE(x, limits_.travel_min_mm) << where(target, target_velocity);
     EXPECT_LE(x, limits_.travel_max_mm) << where(target, target_velocity);
     const double v = (x - x_) / kDt;
-    EXPECT_LE(std::abs(v), limits_.max_velocity_mm_s * (1.0 + 1e-9)) << where(target, target_velocity);
+    EXPECT_LE(std::abs(v), limits_.max_velocity_mm_s * (1.0 + 1e-9))
+        << where(target, target_velocity);
     EXPECT_LE(std::abs(v - v_) / kDt, limits_.max_acceleration_mm_s2 * (1.0 + 1e-9))
         << where(target, target_velocity) << " v " << v_ << " -> " << v;
     EXPECT_NEAR(limiter_.setpoint_velocity_mm_s(), v, 1e-9 * limits_.max_velocity_mm_s);
@@ -100,7 +101,10 @@ TEST(CommandLimiterTest, RandomAdversarialTargetsNeverLeaveTheLimits) {
         target = uni(rng) < 0.5 ? 1000.0 : -1000.0;
       }
       const double q = uni(rng);
-      target_v = q < 0.4 ? 0.0 : q < 0.8 ? speed(rng) : q < 0.9 ? kNaN : (uni(rng) < 0.5 ? kInf : -kInf);
+      target_v = q < 0.4   ? 0.0
+                 : q < 0.8 ? speed(rng)
+                 : q < 0.9 ? kNaN
+                           : (uni(rng) < 0.5 ? kInf : -kInf);
     }
     const bool non_finite = !std::isfinite(target) || !std::isfinite(target_v);
     if (non_finite) {
@@ -114,7 +118,7 @@ TEST(CommandLimiterTest, RandomAdversarialTargetsNeverLeaveTheLimits) {
   EXPECT_EQ(l.count(LimitEvent::kNonFinite), expected_non_finite);
   EXPECT_EQ(l.count(LimitEvent::kTravel), expected_travel);
   EXPECT_EQ(l.faults(), expected_non_finite + expected_travel);
-  EXPECT_GT(l.count(LimitEvent::kVelocity), 0u);      // the test did push the limits
+  EXPECT_GT(l.count(LimitEvent::kVelocity), 0u);  // the test did push the limits
   EXPECT_GT(l.count(LimitEvent::kAcceleration), 0u);
 }
 
@@ -226,8 +230,10 @@ TEST(CommandLimiterTest, ReachableStepTargetIsReachedWithoutOvershoot) {
     double prev = cs.from;
     for (int k = 1; k <= 1000; ++k) {
       const double x = c.Step(cs.to, 0.0);
-      ASSERT_LE(dir * (x - cs.to), 1e-12) << cs.from << "->" << cs.to << " overshoot at cycle " << k;
-      ASSERT_GE(dir * (x - prev), -1e-12) << cs.from << "->" << cs.to << " moved backwards at cycle " << k;
+      ASSERT_LE(dir * (x - cs.to), 1e-12)
+          << cs.from << "->" << cs.to << " overshoot at cycle " << k;
+      ASSERT_GE(dir * (x - prev), -1e-12)
+          << cs.from << "->" << cs.to << " moved backwards at cycle " << k;
       prev = x;
       if (reached < 0 && std::abs(x - cs.to) <= 1e-12) reached = k;
     }

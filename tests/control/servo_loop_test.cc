@@ -32,7 +32,8 @@ struct Rig {
     plant.ResetTo(reference.Evaluate(0.0).position_mm);
     plant.Configure();
     plant.Activate();
-    loop = std::make_unique<ServoLoop>(plant, use_seed_config ? SeedServoConfig(options, true) : config);
+    loop = std::make_unique<ServoLoop>(plant,
+                                       use_seed_config ? SeedServoConfig(options, true) : config);
   }
   hw::PlantOptions options;
   hw::SimulatedCatheter plant;

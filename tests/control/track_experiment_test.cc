@@ -22,7 +22,8 @@
 namespace echoservo::control {
 namespace {
 
-TrackResult RunTrack(const std::string& trajectory, const std::string& compensation, std::uint64_t seed = 1) {
+TrackResult RunTrack(const std::string& trajectory, const std::string& compensation,
+                     std::uint64_t seed = 1) {
   TrackOptions o = TrackOptions::SeedDefaults();
   o.trajectory = trajectory;
   o.compensation = compensation;
@@ -67,14 +68,15 @@ TEST_P(SeedFiguresTest, TipMaeMatchesThePublishedFigure) {
   EXPECT_GE(r.tip.max, r.tip.rms);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Seed, SeedFiguresTest,
-    ::testing::Combine(::testing::Values("sine", "mitral"), ::testing::Values("none", "iterative", "adaptive"),
-                       ::testing::Values(std::uint64_t{1}, std::uint64_t{17}, std::uint64_t{123})),
-    [](const ::testing::TestParamInfo<SeedFiguresTest::ParamType>& info) {
-      return std::get<0>(info.param) + "_" + std::get<1>(info.param) + "_seed" +
-             std::to_string(std::get<2>(info.param));
-    });
+INSTANTIATE_TEST_SUITE_P(Seed, SeedFiguresTest,
+                         ::testing::Combine(::testing::Values("sine", "mitral"),
+                                            ::testing::Values("none", "iterative", "adaptive"),
+                                            ::testing::Values(std::uint64_t{1}, std::uint64_t{17},
+                                                              std::uint64_t{123})),
+                         [](const ::testing::TestParamInfo<SeedFiguresTest::ParamType>& info) {
+                           return std::get<0>(info.param) + "_" + std::get<1>(info.param) +
+                                  "_seed" + std::to_string(std::get<2>(info.param));
+                         });
 
 TEST(TrackExperimentTest, GeometricWidthIsThetaTimesGap) {
   EXPECT_NEAR(GeometricWidthMm(), std::numbers::pi * 0.8, 1e-12);

@@ -43,7 +43,8 @@ TEST(SineTrajectoryTest, DerivativesMatchFiniteDifferences) {
       const MotionSample p = sine.Evaluate(t + h);
       const MotionSample m = sine.Evaluate(t - h);
       ASSERT_NEAR(s.velocity_mm_s, (p.position_mm - m.position_mm) / (2.0 * h), tol_v) << "t=" << t;
-      ASSERT_NEAR(s.acceleration_mm_s2, (p.velocity_mm_s - m.velocity_mm_s) / (2.0 * h), tol_a) << "t=" << t;
+      ASSERT_NEAR(s.acceleration_mm_s2, (p.velocity_mm_s - m.velocity_mm_s) / (2.0 * h), tol_a)
+          << "t=" << t;
       ASSERT_LE(std::abs(s.position_mm), amp * (1.0 + 1e-15));
     }
   }
@@ -82,8 +83,14 @@ Extrema FindExtrema(const Trajectory& traj, double period) {
   for (int i = 0; i < kGrid; ++i) {
     const double t = period * i / kGrid;
     const MotionSample s = traj.Evaluate(t);
-    if (s.position_mm < e.min_x) { e.min_x = s.position_mm; t_min = t; }
-    if (s.position_mm > e.max_x) { e.max_x = s.position_mm; t_max = t; }
+    if (s.position_mm < e.min_x) {
+      e.min_x = s.position_mm;
+      t_min = t;
+    }
+    if (s.position_mm > e.max_x) {
+      e.max_x = s.position_mm;
+      t_max = t;
+    }
     e.max_speed = std::max(e.max_speed, std::abs(s.velocity_mm_s));
     e.max_accel = std::max(e.max_accel, std::abs(s.acceleration_mm_s2));
   }
@@ -150,7 +157,8 @@ TEST(MitralTrajectoryTest, IsPeriodicAtTheHeartRate) {
   double worst = 0.0;
   for (int i = 0; i < 100; ++i) {
     const double t = period * i / 100.0;
-    worst = std::max(worst, std::abs(mitral.Evaluate(t).position_mm - mitral.Evaluate(t + 0.5 * period).position_mm));
+    worst = std::max(worst, std::abs(mitral.Evaluate(t).position_mm -
+                                     mitral.Evaluate(t + 0.5 * period).position_mm));
   }
   EXPECT_GT(worst, 5.0);
 }
@@ -172,10 +180,11 @@ TEST(MitralTrajectoryTest, DerivativesMatchFiniteDifferences) {
 }
 
 // Design ranges of the mitral model (control/trajectory.h, docs/mitral_trajectory.md:
-// "peaks near 160 mm/s and 3600 mm/s²"; measured 161 mm/s, 3571 mm/s²): the keyframes and the 10-harmonic truncation put the peak annulus
-// speed within [140, 230] mm/s and the peak acceleration within [3000, 4500] mm/s² at
-// 75 bpm and 15 mm. A keyframe or scaling change that leaves these ranges changes the
-// difficulty of every tracking figure and must be a deliberate decision.
+// "peaks near 160 mm/s and 3600 mm/s²"; measured 161 mm/s, 3571 mm/s²): the keyframes and the
+// 10-harmonic truncation put the peak annulus speed within [140, 230] mm/s and the peak
+// acceleration within [3000, 4500] mm/s² at 75 bpm and 15 mm. A keyframe or scaling change that
+// leaves these ranges changes the difficulty of every tracking figure and must be a deliberate
+// decision.
 TEST(MitralTrajectoryTest, PeakSpeedAndAccelerationAreWithinTheDesignRanges) {
   const MitralTrajectory mitral;
   const Extrema e = FindExtrema(mitral, 0.8);

@@ -84,7 +84,8 @@ TEST(FourierMotionTest, EvaluateMatchesDirectSumForRandomCoefficients) {
       const MotionSample got = m.Evaluate(t);
       const MotionSample want = DirectSum(m, t);
       ASSERT_NEAR(got.position_mm, want.position_mm, tol_p) << "N=" << m.harmonics() << " t=" << t;
-      ASSERT_NEAR(got.velocity_mm_s, want.velocity_mm_s, tol_v) << "N=" << m.harmonics() << " t=" << t;
+      ASSERT_NEAR(got.velocity_mm_s, want.velocity_mm_s, tol_v)
+          << "N=" << m.harmonics() << " t=" << t;
       ASSERT_NEAR(got.acceleration_mm_s2, want.acceleration_mm_s2, tol_a)
           << "N=" << m.harmonics() << " t=" << t;
       ASSERT_DOUBLE_EQ(m.Position(t), got.position_mm);
@@ -133,7 +134,8 @@ TEST(FourierMotionTest, DerivativesMatchFiniteDifferences) {
       const MotionSample plus = m.Evaluate(t + h);
       const MotionSample minus = m.Evaluate(t - h);
       ASSERT_NEAR(s.velocity_mm_s, (plus.position_mm - minus.position_mm) / (2.0 * h), tol_v);
-      ASSERT_NEAR(s.acceleration_mm_s2, (plus.velocity_mm_s - minus.velocity_mm_s) / (2.0 * h), tol_a);
+      ASSERT_NEAR(s.acceleration_mm_s2, (plus.velocity_mm_s - minus.velocity_mm_s) / (2.0 * h),
+                  tol_a);
     }
   }
 }
@@ -198,11 +200,14 @@ TEST(FourierMotionTest, FromPeriodSamplesOfAConstantIsTheOffset) {
 }
 
 TEST(FourierMotionTest, FromPeriodSamplesRejectsTooFewSamples) {
-  EXPECT_THROW(FourierMotion::FromPeriodSamples(std::vector<double>(6, 0.0), 3, 1.0), std::invalid_argument);
+  EXPECT_THROW(FourierMotion::FromPeriodSamples(std::vector<double>(6, 0.0), 3, 1.0),
+               std::invalid_argument);
   EXPECT_NO_THROW(FourierMotion::FromPeriodSamples(std::vector<double>(7, 0.0), 3, 1.0));
   EXPECT_THROW(FourierMotion::FromPeriodSamples({}, 0, 1.0), std::invalid_argument);
-  EXPECT_THROW(FourierMotion::FromPeriodSamples(std::vector<double>(8, 0.0), -1, 1.0), std::invalid_argument);
-  EXPECT_THROW(FourierMotion::FromPeriodSamples(std::vector<double>(8, 0.0), 2, 0.0), std::invalid_argument);
+  EXPECT_THROW(FourierMotion::FromPeriodSamples(std::vector<double>(8, 0.0), -1, 1.0),
+               std::invalid_argument);
+  EXPECT_THROW(FourierMotion::FromPeriodSamples(std::vector<double>(8, 0.0), 2, 0.0),
+               std::invalid_argument);
 }
 
 // Expects `m.Validate()` to throw std::invalid_argument mentioning `needle`.

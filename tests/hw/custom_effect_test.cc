@@ -26,12 +26,12 @@
 #include <utility>
 #include <vector>
 
-#include "tests/test_util/expect_error.h"
 #include "hw/effect.h"
 #include "hw/effect_registry.h"
 #include "hw/effects/builtin_effects.h"
 #include "hw/simulated_catheter.h"
 #include "hw/transmission_model.h"
+#include "tests/test_util/expect_error.h"
 
 namespace echoservo::hw {
 namespace {
@@ -100,7 +100,8 @@ std::string ReadText(const std::string& path) {
 // ----------------------------------------------------------------------- the doc
 
 TEST(CustomEffect, DocShowsThisFilesExample) {
-  const std::string doc = ReadText(std::string(ECHOSERVO_DATA_DIR) + "/../docs/adding_an_effect.md");
+  const std::string doc =
+      ReadText(std::string(ECHOSERVO_DATA_DIR) + "/../docs/adding_an_effect.md");
   ASSERT_FALSE(doc.empty()) << "cannot read docs/adding_an_effect.md";
   const std::string source = ReadText(__FILE__);
   ASSERT_FALSE(source.empty()) << "cannot read " << __FILE__;
@@ -149,8 +150,8 @@ TEST(CustomEffect, DescribesItselfWithPhysicalParameters) {
 
 TEST(CustomEffect, HookIsCoulombsLawOfThePreloadAndOtherHooksAreNeutral) {
   const auto e = MakeSealPreloadFriction();
-  for (const auto& [preload, mu] : std::vector<std::pair<double, double>>{
-           {2.0, 0.15}, {0.0, 0.5}, {6.0, 0.25}, {20.0, 1.0}}) {
+  for (const auto& [preload, mu] :
+       std::vector<std::pair<double, double>>{{2.0, 0.15}, {0.0, 0.5}, {6.0, 0.25}, {20.0, 1.0}}) {
     const double p[] = {preload, mu};
     for (double load : {0.0, 3.0}) {
       EffectContext c;
@@ -199,7 +200,8 @@ TEST(CustomEffect, ModelSpecAcceptsSeedPlusTheNewEffect) {
                  "twice");
   // The built-in registry does not know it, and says so naming the token.
   ExpectContains(InvalidArgumentMessage([] {
-                   ParseModelSpec("seed+seal_preload_friction", EffectRegistry::WithBuiltinEffects());
+                   ParseModelSpec("seed+seal_preload_friction",
+                                  EffectRegistry::WithBuiltinEffects());
                  }),
                  "'seal_preload_friction'");
 }
@@ -207,12 +209,12 @@ TEST(CustomEffect, ModelSpecAcceptsSeedPlusTheNewEffect) {
 TEST(CustomEffect, RegistrationRejectsDuplicatesAndMisnamedFactories) {
   EffectRegistry r = RegistryWithSeal();
   const Names before = r.Names();
-  ExpectContains(InvalidArgumentMessage([&] {
-                   r.Register("seal_preload_friction", MakeSealPreloadFriction);
-                 }),
-                 "registered twice");
-  ExpectContains(InvalidArgumentMessage([&] { r.Register("coulomb_friction", MakeCoulombFriction); }),
-                 "registered twice");
+  ExpectContains(
+      InvalidArgumentMessage([&] { r.Register("seal_preload_friction", MakeSealPreloadFriction); }),
+      "registered twice");
+  ExpectContains(
+      InvalidArgumentMessage([&] { r.Register("coulomb_friction", MakeCoulombFriction); }),
+      "registered twice");
   // A factory whose effect reports another name than the one it is registered under.
   const std::string msg =
       InvalidArgumentMessage([&] { r.Register("o_ring_friction", MakeSealPreloadFriction); });
@@ -242,13 +244,13 @@ TEST(CustomEffect, ModelExposesQualifiedParametersWithDefaults) {
   EXPECT_EQ(m.GetParameter("seal_preload_friction.preload_n"), 6.0);
   // Outside the physical bounds: rejected, naming the parameter, value unchanged.
   for (double bad : {-1.0, 25.0, std::nan("")}) {
-    ExpectContains(InvalidArgumentMessage([&] {
-                     m.SetParameter("seal_preload_friction.preload_n", bad);
-                   }),
-                   "seal_preload_friction.preload_n");
+    ExpectContains(
+        InvalidArgumentMessage([&] { m.SetParameter("seal_preload_friction.preload_n", bad); }),
+        "seal_preload_friction.preload_n");
   }
-  ExpectContains(InvalidArgumentMessage([&] { m.SetParameter("seal_preload_friction.mu_seal", 1.5); }),
-                 "seal_preload_friction.mu_seal");
+  ExpectContains(
+      InvalidArgumentMessage([&] { m.SetParameter("seal_preload_friction.mu_seal", 1.5); }),
+      "seal_preload_friction.mu_seal");
   EXPECT_EQ(m.GetParameter("seal_preload_friction.preload_n"), 6.0);
 }
 
@@ -275,12 +277,14 @@ TEST(CustomEffect, AddsMuTimesPreloadToThePipelineFriction) {
 
     // Composition by the pipeline rules: the capstan factor multiplies the seal term
     // too, and friction_backlash widens the deadzone by θ·gap·b·(mu_seal·P).
-    TransmissionModel capstan_without(Registry(), ParseModelSpec("seed+capstan_friction", Registry()), g);
+    TransmissionModel capstan_without(Registry(),
+                                      ParseModelSpec("seed+capstan_friction", Registry()), g);
     TransmissionModel capstan_with(
         Registry(), ParseModelSpec("seed+capstan_friction+seal_preload_friction", Registry()), g);
     capstan_with.SetParameter("seal_preload_friction.preload_n", preload);
     capstan_with.SetParameter("seal_preload_friction.mu_seal", mu);
-    const double factor = std::exp(capstan_with.GetParameter("capstan_friction.mu") * g.TotalBendRad());
+    const double factor =
+        std::exp(capstan_with.GetParameter("capstan_friction.mu") * g.TotalBendRad());
     EXPECT_NEAR(capstan_with.FrictionMagnitudeN(15.0) - capstan_without.FrictionMagnitudeN(15.0),
                 factor * seal_n, 1e-12);
 
@@ -291,9 +295,10 @@ TEST(CustomEffect, AddsMuTimesPreloadToThePipelineFriction) {
     TransmissionModel fb_with(Registry(), fb_seal, g);
     fb_with.SetParameter("seal_preload_friction.preload_n", preload);
     fb_with.SetParameter("seal_preload_friction.mu_seal", mu);
-    EXPECT_NEAR(fb_with.BacklashWidthMm() - fb_without.BacklashWidthMm(),
-                g.TotalBendRad() * g.GapMm() * fb_with.GetParameter("friction_backlash.b_per_n") * seal_n,
-                1e-12);
+    EXPECT_NEAR(
+        fb_with.BacklashWidthMm() - fb_without.BacklashWidthMm(),
+        g.TotalBendRad() * g.GapMm() * fb_with.GetParameter("friction_backlash.b_per_n") * seal_n,
+        1e-12);
   }
 }
 
@@ -331,7 +336,8 @@ Stroke ConstantVelocity(PlantOptions options, double v, double duration_s, doubl
       out.force.push_back(plant.state(s_sensor));
       out.velocity.push_back(truth.base_velocity_mm_s);
     }
-    plant.set_command(c_force, kp * (start + v * t - truth.base_mm) + kd * (v - truth.base_velocity_mm_s));
+    plant.set_command(c_force,
+                      kp * (start + v * t - truth.base_mm) + kd * (v - truth.base_velocity_mm_s));
     plant.write(t, kDt);
   }
   return out;
@@ -342,11 +348,13 @@ double Mean(const std::vector<double>& x) {
 }
 
 double MeanTolerance(std::size_t n) {
-  return 4.0 * kSensors.force_noise_n / std::sqrt(static_cast<double>(n)) + 0.5 * kSensors.force_quantum_n;
+  return 4.0 * kSensors.force_noise_n / std::sqrt(static_cast<double>(n)) +
+         0.5 * kSensors.force_quantum_n;
 }
 
 double DifferenceTolerance(std::size_t n) {
-  return 4.0 * kSensors.force_noise_n * std::sqrt(2.0 / static_cast<double>(n)) + kSensors.force_quantum_n;
+  return 4.0 * kSensors.force_noise_n * std::sqrt(2.0 / static_cast<double>(n)) +
+         kSensors.force_quantum_n;
 }
 
 TEST(CustomEffectInClosedLoop, RaisesTheMeanForceByMuTimesPreload) {

@@ -9,11 +9,11 @@
 #include <string>
 #include <vector>
 
-#include "tests/test_util/expect_error.h"
 #include "hw/effect.h"
 #include "hw/effect_registry.h"
 #include "hw/effects/builtin_effects.h"
 #include "hw/transmission_model.h"
+#include "tests/test_util/expect_error.h"
 
 namespace echoservo::hw {
 namespace {
@@ -23,9 +23,9 @@ using ::echoservo::testing::InvalidArgumentMessage;
 
 using Names = std::vector<std::string>;
 
-const Names kCatalog = {"coulomb_friction",     "viscous_friction", "stribeck_friction",
-                        "capstan_friction",     "guidewire_compliance", "backlash",
-                        "friction_backlash",    "deadzone_traversal", "sensor_delay",
+const Names kCatalog = {"coulomb_friction",  "viscous_friction",     "stribeck_friction",
+                        "capstan_friction",  "guidewire_compliance", "backlash",
+                        "friction_backlash", "deadzone_traversal",   "sensor_delay",
                         "tip_sensor_scale"};
 
 const EffectRegistry& Registry() {
@@ -107,8 +107,9 @@ TEST(ModelSpec, SeedPlusCapstanExpandsInPipelineOrder) {
   const Names expected = {"coulomb_friction", "viscous_friction", "capstan_friction", "backlash"};
   EXPECT_EQ(ParseModelSpec("seed+capstan_friction", Registry()), expected);
   EXPECT_EQ(ParseModelSpec("capstan_friction+seed", Registry()), expected);
-  EXPECT_EQ(ParseModelSpec("backlash+capstan_friction+viscous_friction+coulomb_friction", Registry()),
-            expected);
+  EXPECT_EQ(
+      ParseModelSpec("backlash+capstan_friction+viscous_friction+coulomb_friction", Registry()),
+      expected);
   EXPECT_EQ(ParseModelSpec("seed", Registry()), SeedEffects());
   EXPECT_EQ(SeedEffects(), (Names{"coulomb_friction", "viscous_friction", "backlash"}));
 }
@@ -153,8 +154,9 @@ TEST(ModelSpec, DuplicatesThrowNamingTheEffect) {
 
 TEST(ModelSpec, FormatUsesTheSeedAlias) {
   EXPECT_EQ(FormatModelSpec(SeedEffects()), "seed");
-  EXPECT_EQ(FormatModelSpec({"coulomb_friction", "viscous_friction", "capstan_friction", "backlash"}),
-            "seed+capstan_friction");
+  EXPECT_EQ(
+      FormatModelSpec({"coulomb_friction", "viscous_friction", "capstan_friction", "backlash"}),
+      "seed+capstan_friction");
   EXPECT_EQ(FormatModelSpec({"coulomb_friction", "backlash"}), "coulomb_friction+backlash");
 }
 
@@ -239,7 +241,8 @@ TEST(CapstanFriction, MultipliesAllFrictionByExpMuTheta) {
        {std::vector<double>{}, {45.0}, {90.0, 90.0}, {180.0, 90.0, 90.0}, {360.0, 360.0}}) {
     const CatheterConfig g = Geometry(1.6, 0.8, bends, 0.0);
     const double theta = g.TotalBendRad();
-    TransmissionModel m(Registry(), {"coulomb_friction", "viscous_friction", "capstan_friction"}, g);
+    TransmissionModel m(Registry(), {"coulomb_friction", "viscous_friction", "capstan_friction"},
+                        g);
     m.SetParameter("capstan_friction.mu", mu);
     const double f0 = m.GetParameter("coulomb_friction.f0_n");
     const double b = m.GetParameter("viscous_friction.b_n_per_mm_s");
@@ -304,18 +307,19 @@ TEST(FrictionBacklash, WidthGrowsWithTheFrictionLevel) {
     TransmissionModel m(Registry(), {"coulomb_friction", "friction_backlash"}, g);
     m.SetParameter("friction_backlash.a", a);
     m.SetParameter("friction_backlash.b_per_n", bpn);
-    const double level = m.GetParameter("coulomb_friction.f0_n") +
-                         m.GetParameter("coulomb_friction.mu_tip") * load;
+    const double level =
+        m.GetParameter("coulomb_friction.f0_n") + m.GetParameter("coulomb_friction.mu_tip") * load;
     ASSERT_NEAR(m.FrictionLevelN(), level, 1e-12);
     EXPECT_NEAR(m.BacklashWidthMm(), std::numbers::pi * 0.8 * (a + bpn * level), 1e-12)
         << "load=" << load;
   }
   // The level is the breakaway friction: Stribeck counts, viscous (zero at rest) does not.
-  TransmissionModel s(Registry(),
-                      {"coulomb_friction", "viscous_friction", "stribeck_friction", "friction_backlash"},
-                      CatheterConfig::SeedEvaluation());
-  const double level = s.GetParameter("coulomb_friction.f0_n") +
-                       s.GetParameter("stribeck_friction.delta_static_n");
+  TransmissionModel s(
+      Registry(),
+      {"coulomb_friction", "viscous_friction", "stribeck_friction", "friction_backlash"},
+      CatheterConfig::SeedEvaluation());
+  const double level =
+      s.GetParameter("coulomb_friction.f0_n") + s.GetParameter("stribeck_friction.delta_static_n");
   EXPECT_NEAR(s.BacklashWidthMm(),
               std::numbers::pi * 0.8 *
                   (s.GetParameter("friction_backlash.a") +
@@ -340,7 +344,8 @@ TEST(DeadzoneTraversal, TimeConstantFromItsParameter) {
   const auto e = Registry().Create("deadzone_traversal");
   const double p[] = {0.07};
   EXPECT_DOUBLE_EQ(e->TraversalTimeConstantS(p), 0.07);
-  TransmissionModel m(Registry(), {"backlash", "deadzone_traversal"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(Registry(), {"backlash", "deadzone_traversal"},
+                      CatheterConfig::SeedEvaluation());
   m.SetParameter("deadzone_traversal.tau_s", 0.035);
   EXPECT_DOUBLE_EQ(m.TraversalTimeConstantS(), 0.035);
   TransmissionModel none(Registry(), {"backlash"}, CatheterConfig::SeedEvaluation());
@@ -348,7 +353,8 @@ TEST(DeadzoneTraversal, TimeConstantFromItsParameter) {
 }
 
 TEST(DeadzoneTraversal, OneTimeConstantClosesSixtyThreePercentOfTheGap) {
-  TransmissionModel m(Registry(), {"backlash", "deadzone_traversal"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(Registry(), {"backlash", "deadzone_traversal"},
+                      CatheterConfig::SeedEvaluation());
   const double tau = 0.02;
   m.SetParameter("deadzone_traversal.tau_s", tau);
   const double half = 0.5 * m.BacklashWidthMm();
@@ -427,8 +433,8 @@ TEST(Effects, NeutralHooksOfEveryEffect) {
     for (const ParameterSpec& s : e->parameters()) p.push_back(s.default_value);
     const double* pp = p.empty() ? nullptr : p.data();
     const EffectStage st = e->stage();
-    const bool friction_term = name == "coulomb_friction" || name == "viscous_friction" ||
-                               name == "stribeck_friction";
+    const bool friction_term =
+        name == "coulomb_friction" || name == "viscous_friction" || name == "stribeck_friction";
     if (!friction_term) {
       EXPECT_EQ(e->FrictionMagnitudeN(5.0, c, pp), 0.0) << name;
     }

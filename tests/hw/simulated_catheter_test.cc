@@ -7,7 +7,6 @@
 // noisy samples has a standard deviation σ/√n; we allow 4 of those (a false alarm
 // about once in 16 000 runs, and the seed is fixed) plus half a quantum (the largest
 // bias rounding could add; with σ > q the bias is in fact far smaller).
-#include "tests/test_util/expect_error.h"
 #include "hw/simulated_catheter.h"
 
 #include <gtest/gtest.h>
@@ -22,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include "tests/test_util/expect_error.h"
+
 namespace echoservo::hw {
 namespace {
 
@@ -34,13 +35,13 @@ constexpr double kDt = 1e-3;  // control period (s)
 // commanded for [t, t + dt), and the ground truth at the moment of the read.
 struct Sample {
   double t = 0.0;
-  double base = 0.0;       // measured, mm
-  double velocity = 0.0;   // mm/s
-  double sensor = 0.0;     // force sensor, N
-  double actuator = 0.0;   // actuator force (state), N
-  double tip = 0.0;        // measured, mm
+  double base = 0.0;      // measured, mm
+  double velocity = 0.0;  // mm/s
+  double sensor = 0.0;    // force sensor, N
+  double actuator = 0.0;  // actuator force (state), N
+  double tip = 0.0;       // measured, mm
   double faults = 0.0;
-  double command = 0.0;    // N
+  double command = 0.0;  // N
   PlantTruth truth;
 };
 
@@ -61,8 +62,7 @@ Reference Triangle(double amplitude, double speed) {
   auto phase = [=](double t) { return std::fmod(t, 2.0 * half_period); };
   return {[=](double t) {
             const double p = phase(t);
-            return p < half_period ? -amplitude + speed * p
-                                   : amplitude - speed * (p - half_period);
+            return p < half_period ? -amplitude + speed * p : amplitude - speed * (p - half_period);
           },
           [=](double t) { return phase(t) < half_period ? speed : -speed; }};
 }
@@ -193,8 +193,8 @@ double ForceMeanTolerance(std::size_t n) {
 TEST(SimulatedCatheter, StandardInterfaces) {
   SimulatedCatheter plant(Options());
   const std::vector<std::pair<std::string, std::string>> states = {
-      {"base/position", "mm"},       {"base/velocity", "mm/s"}, {"actuator/current", "A"},
-      {"actuator/force", "N"},       {"force_sensor/force", "N"}, {"tip/position", "mm"},
+      {"base/position", "mm"}, {"base/velocity", "mm/s"},   {"actuator/current", "A"},
+      {"actuator/force", "N"}, {"force_sensor/force", "N"}, {"tip/position", "mm"},
       {"fault/count", "1"}};
   ASSERT_EQ(plant.state_interfaces().size(), states.size());
   for (std::size_t i = 0; i < states.size(); ++i) {
@@ -565,9 +565,16 @@ TEST(SimulatedCatheter, NoiseCanBeSwitchedOff) {
   const std::vector<Sample> s = rig.Track(Ramp(1.23456, 8.0), 0.5);
   for (const Sample& x : s) {
     // Only the quantisation is left.
-    EXPECT_NEAR(x.base, kSensors.base_quantum_mm * std::round(x.truth.base_mm / kSensors.base_quantum_mm), 1e-12);
-    EXPECT_NEAR(x.tip, kSensors.tip_quantum_mm * std::round(x.truth.tip_mm / kSensors.tip_quantum_mm), 1e-12);
-    EXPECT_NEAR(x.sensor, kSensors.force_quantum_n * std::round(x.truth.friction_force_n / kSensors.force_quantum_n), 1e-12);
+    EXPECT_NEAR(x.base,
+                kSensors.base_quantum_mm * std::round(x.truth.base_mm / kSensors.base_quantum_mm),
+                1e-12);
+    EXPECT_NEAR(x.tip,
+                kSensors.tip_quantum_mm * std::round(x.truth.tip_mm / kSensors.tip_quantum_mm),
+                1e-12);
+    EXPECT_NEAR(
+        x.sensor,
+        kSensors.force_quantum_n * std::round(x.truth.friction_force_n / kSensors.force_quantum_n),
+        1e-12);
     EXPECT_EQ(x.velocity, x.truth.base_velocity_mm_s);
   }
   // Two noiseless plants agree exactly whatever their seeds.
@@ -602,8 +609,8 @@ TEST(SimulatedCatheter, SameSeedSameNoise) {
 TEST(SimulatedCatheter, SensorDelayShiftsTheMeasuredTip) {
   // Ideal sensor; the measured tip at t is the true tip at t − d.
   for (double delay : {0.005, 0.0123}) {
-    PlantOptions o = Noiseless(Options({"coulomb_friction", "viscous_friction", "backlash",
-                                        "sensor_delay"}));
+    PlantOptions o =
+        Noiseless(Options({"coulomb_friction", "viscous_friction", "backlash", "sensor_delay"}));
     o.parameters = {{"sensor_delay.delay_s", delay}};
     Rig rig(o, -10.0);
     const std::vector<Sample> s = rig.Track(Triangle(10.0, 20.0), 2.0);
@@ -620,7 +627,8 @@ TEST(SimulatedCatheter, SensorDelayShiftsTheMeasuredTip) {
       const double f = back - static_cast<double>(j);
       auto step = [&](std::size_t k) { return s[k + 1].truth.tip_mm - s[k].truth.tip_mm; };
       moved = std::max(moved, std::abs(s[i].truth.tip_mm - s[j].truth.tip_mm));
-      if (std::abs(step(j) - step(j - 1)) > 1e-9 || std::abs(step(j + 1) - step(j)) > 1e-9) continue;
+      if (std::abs(step(j) - step(j - 1)) > 1e-9 || std::abs(step(j + 1) - step(j)) > 1e-9)
+        continue;
       const double truth = s[j].truth.tip_mm + f * step(j);
       worst = std::max(worst, std::abs(s[i].tip - truth));
       ++checked;
@@ -638,8 +646,8 @@ TEST(SimulatedCatheter, SensorDelayIsInSecondsWhateverTheCyclePeriod) {
   const double v = 10.0;
   for (double delay : {0.0, 2e-5, 0.01}) {
     for (double dt : {0.25e-3, 0.3e-3, 0.5e-3, 1e-3, 1.3e-3, 2e-3}) {
-      PlantOptions o = Noiseless(Options({"coulomb_friction", "viscous_friction", "backlash",
-                                          "sensor_delay"}));
+      PlantOptions o =
+          Noiseless(Options({"coulomb_friction", "viscous_friction", "backlash", "sensor_delay"}));
       o.parameters = {{"sensor_delay.delay_s", delay}};
       Rig rig(o, -10.0, dt);
       const std::vector<Sample> s = After(rig.Track(Ramp(-10.0, v), 1.0), 0.5);
@@ -655,8 +663,8 @@ TEST(SimulatedCatheter, SensorDelayIsInSecondsWhateverTheCyclePeriod) {
 
 TEST(SimulatedCatheter, TipSensorScaleMultipliesTheMeasuredTip) {
   for (double scale : {0.8, 1.03, 1.5}) {
-    PlantOptions o = Noiseless(Options({"coulomb_friction", "viscous_friction", "backlash",
-                                        "tip_sensor_scale"}));
+    PlantOptions o = Noiseless(
+        Options({"coulomb_friction", "viscous_friction", "backlash", "tip_sensor_scale"}));
     o.parameters = {{"tip_sensor_scale.scale", scale}};
     Rig rig(o, -10.0);
     const std::vector<Sample> s = rig.Track(Triangle(10.0, 20.0), 1.5);
@@ -671,8 +679,8 @@ TEST(SimulatedCatheter, TipSensorScaleMultipliesTheMeasuredTip) {
 
 TEST(SimulatedCatheter, SensorDelayAndScaleCompose) {
   // tip_meas(t) = s · tip(t − d), checked on a steady ramp: s · (tip(t) − v d).
-  PlantOptions o = Noiseless(Options({"coulomb_friction", "viscous_friction", "backlash",
-                                      "sensor_delay", "tip_sensor_scale"}));
+  PlantOptions o = Noiseless(Options(
+      {"coulomb_friction", "viscous_friction", "backlash", "sensor_delay", "tip_sensor_scale"}));
   o.parameters = {{"sensor_delay.delay_s", 0.02}, {"tip_sensor_scale.scale", 1.1}};
   Rig rig(o, -10.0);
   for (const Sample& x : After(rig.Track(Ramp(-10.0, 10.0), 1.0), 0.5)) {
@@ -731,7 +739,8 @@ TEST(SimulatedCatheter, ConstantVelocityForceEqualsModelFriction) {
       const std::vector<Sample> s = After(rig.Track(Ramp(start, v), duration), 0.3);
       ASSERT_GT(s.size(), 500u);
       // Steady: the base moves at v.
-      const std::vector<double> vel = Collect(s, [](const Sample& x) { return x.truth.base_velocity_mm_s; });
+      const std::vector<double> vel =
+          Collect(s, [](const Sample& x) { return x.truth.base_velocity_mm_s; });
       ASSERT_NEAR(Mean(vel), v, 1e-3 * c.speed);
       const double expected = sign * FrictionByEquation(rig.model(), c.speed);
       ASSERT_NEAR(expected, sign * rig.model().FrictionMagnitudeN(c.speed), 1e-12);
@@ -787,8 +796,8 @@ TEST(SimulatedCatheter, FrictionBacklashWidthInClosedLoop) {
     o.config.tip_load_n = load;
     Rig rig(o, -8.0);
     const TransmissionModel& m = rig.model();
-    const double level = m.GetParameter("coulomb_friction.f0_n") +
-                         m.GetParameter("coulomb_friction.mu_tip") * load;
+    const double level =
+        m.GetParameter("coulomb_friction.f0_n") + m.GetParameter("coulomb_friction.mu_tip") * load;
     const double width = std::numbers::pi * 0.8 *
                          (m.GetParameter("friction_backlash.a") +
                           m.GetParameter("friction_backlash.b_per_n") * level);
@@ -803,7 +812,8 @@ TEST(SimulatedCatheter, FrictionBacklashWidthInClosedLoop) {
 
 TEST(SimulatedCatheter, ComplianceWidensTheLoopByTwiceForceOverStiffness) {
   // drive = base − F/k, F = ±F(v) on the two branches: width B + 2 F(v)/k.
-  PlantOptions o = Options({"coulomb_friction", "viscous_friction", "guidewire_compliance", "backlash"});
+  PlantOptions o =
+      Options({"coulomb_friction", "viscous_friction", "guidewire_compliance", "backlash"});
   o.parameters = {{"guidewire_compliance.k_n_per_mm", 2.0}};
   Rig rig(o, -8.0);
   const double speed = 4.0;
@@ -818,8 +828,8 @@ TEST(SimulatedCatheter, ComplianceWidensTheLoopByTwiceForceOverStiffness) {
 TEST(SimulatedCatheter, DeadzoneTraversalLagsTheBandEdgeByVTau) {
   for (double tau : {0.02, 0.05}) {
     for (double v : {10.0, -25.0}) {
-      PlantOptions o = Options({"coulomb_friction", "viscous_friction", "backlash",
-                                "deadzone_traversal"});
+      PlantOptions o =
+          Options({"coulomb_friction", "viscous_friction", "backlash", "deadzone_traversal"});
       o.parameters = {{"deadzone_traversal.tau_s", tau}};
       const double start = v > 0 ? -20.0 : 20.0;
       Rig rig(o, start);
@@ -831,9 +841,8 @@ TEST(SimulatedCatheter, DeadzoneTraversalLagsTheBandEdgeByVTau) {
       const std::vector<double> lag_truth = Collect(s, [&](const Sample& x) {
         return sign * ((x.truth.drive_mm - sign * half) - x.truth.tip_mm);
       });
-      const std::vector<double> lag_meas = Collect(s, [&](const Sample& x) {
-        return sign * ((x.base - sign * half) - x.tip);
-      });
+      const std::vector<double> lag_meas =
+          Collect(s, [&](const Sample& x) { return sign * ((x.base - sign * half) - x.tip); });
       EXPECT_NEAR(Mean(lag_truth), std::abs(v) * tau, 0.1 * std::abs(v) * tau) << tau << " " << v;
       EXPECT_NEAR(Mean(lag_meas), std::abs(v) * tau, 0.1 * std::abs(v) * tau) << tau << " " << v;
     }
@@ -851,7 +860,8 @@ TEST(SimulatedCatheter, DeadzoneTraversalStopsAtOnceOnReversal) {
   // reverses the band moves away, so the tip can close at most that lag and then must
   // stand still until the base has crossed the deadzone.
   const double speed = 4.0;
-  PlantOptions o = Options({"coulomb_friction", "viscous_friction", "backlash", "deadzone_traversal"});
+  PlantOptions o =
+      Options({"coulomb_friction", "viscous_friction", "backlash", "deadzone_traversal"});
   Rig rig(o, -8.0);
   const double width = rig.model().BacklashWidthMm();
   const double tau = rig.model().TraversalTimeConstantS();

@@ -1,6 +1,5 @@
 // TransmissionModel: parameter naming and validation, and the composition of effects
 // into the pipeline friction → drive → deadzone → tip → sensor.
-#include "tests/test_util/expect_error.h"
 #include "hw/transmission_model.h"
 
 #include <gtest/gtest.h>
@@ -11,6 +10,8 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "tests/test_util/expect_error.h"
 
 namespace echoservo::hw {
 namespace {
@@ -67,8 +68,8 @@ TEST(TransmissionModel, DefaultsAreTheSpecDefaultsAndWithinBounds) {
     EXPECT_TRUE(std::isfinite(info.spec.lower) && std::isfinite(info.spec.upper));
   }
   // Divisors are bounded away from zero, so no parameter value can divide by zero.
-  for (const char* divisor : {"stribeck_friction.v_stribeck_mm_s", "guidewire_compliance.k_n_per_mm",
-                              "deadzone_traversal.tau_s"}) {
+  for (const char* divisor : {"stribeck_friction.v_stribeck_mm_s",
+                              "guidewire_compliance.k_n_per_mm", "deadzone_traversal.tau_s"}) {
     for (const ParameterInfo& info : m.parameter_info()) {
       if (info.qualified_name == divisor) {
         EXPECT_GT(info.spec.lower, 0.0) << divisor;
@@ -87,9 +88,9 @@ TEST(TransmissionModel, SetParameterAcceptsTheBoundsAndRejectsBeyond) {
     EXPECT_NO_THROW(m.SetParameter(name, info.spec.upper)) << name;
     EXPECT_EQ(m.GetParameter(name), info.spec.upper);
     const std::vector<double> before = m.parameters();
-    for (double bad : {info.spec.lower - 1e-3 * span, info.spec.upper + 1e-3 * span,
-                       std::numeric_limits<double>::quiet_NaN(),
-                       std::numeric_limits<double>::infinity()}) {
+    for (double bad :
+         {info.spec.lower - 1e-3 * span, info.spec.upper + 1e-3 * span,
+          std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
       const std::string msg = InvalidArgumentMessage([&] { m.SetParameter(name, bad); });
       ExpectContains(msg, "'" + name + "'");
       EXPECT_EQ(m.parameters(), before) << "a rejected value must leave the model unchanged";
@@ -99,7 +100,8 @@ TEST(TransmissionModel, SetParameterAcceptsTheBoundsAndRejectsBeyond) {
 }
 
 TEST(TransmissionModel, UnknownParameterNamesThrow) {
-  TransmissionModel m(Registry(), {"coulomb_friction", "backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(Registry(), {"coulomb_friction", "backlash"},
+                      CatheterConfig::SeedEvaluation());
   // Unqualified, misspelt, or of an effect that is not in this model.
   for (const std::string name : {"f0_n", "coulomb_friction.f0", "coulomb_friction.",
                                  "viscous_friction.b_n_per_mm_s", "backlash.width", ""}) {
@@ -117,7 +119,9 @@ TEST(TransmissionModel, SetParametersChecksSizeAndValues) {
   ExpectContains(msg, "got 2");
   EXPECT_THROW(m.set_parameters({1.0, 0.1, 0.01, 0.0}), std::invalid_argument);
   EXPECT_THROW(m.set_parameters({}), std::invalid_argument);
-  ExpectContains(InvalidArgumentMessage([&] { m.set_parameters({1.0, -0.1, 0.01}); }),
+  ExpectContains(InvalidArgumentMessage([&] {
+                   m.set_parameters({1.0, -0.1, 0.01});
+                 }),
                  "'coulomb_friction.mu_tip'");
   m.set_parameters({2.0, 0.5, 0.01});
   EXPECT_EQ(m.parameters(), (std::vector<double>{2.0, 0.5, 0.01}));
@@ -135,11 +139,11 @@ TEST(TransmissionModel, ConstructorRejectsUnknownDuplicateAndBadGeometry) {
                                      CatheterConfig::SeedEvaluation());
                  }),
                  "'sticky'");
-  ExpectContains(InvalidArgumentMessage([] {
-                   TransmissionModel(Registry(), {"backlash", "backlash"},
-                                     CatheterConfig::SeedEvaluation());
-                 }),
-                 "'backlash'");
+  ExpectContains(
+      InvalidArgumentMessage([] {
+        TransmissionModel(Registry(), {"backlash", "backlash"}, CatheterConfig::SeedEvaluation());
+      }),
+      "'backlash'");
   CatheterConfig bad = CatheterConfig::SeedEvaluation();
   bad.guidewire_od_mm = 2.0;
   ExpectContains(InvalidArgumentMessage([&] { TransmissionModel(Registry(), {"backlash"}, bad); }),
@@ -175,13 +179,15 @@ TEST(TransmissionModel, FullCatalogComposesEveryStage) {
             p("stribeck_friction.delta_static_n") * std::exp(-r * r)) *
            capstan;
   };
-  for (double v : {0.0, 1.0, 3.0, 20.0, 100.0}) EXPECT_NEAR(m.FrictionMagnitudeN(v), friction(v), 1e-12);
+  for (double v : {0.0, 1.0, 3.0, 20.0, 100.0})
+    EXPECT_NEAR(m.FrictionMagnitudeN(v), friction(v), 1e-12);
   EXPECT_NEAR(m.FrictionLevelN(), friction(0.0), 1e-12);
   EXPECT_NEAR(m.DriveMm(1.0, 0.8), 1.0 - 0.8 / p("guidewire_compliance.k_n_per_mm"), 1e-12);
   // friction_backlash comes after backlash in the pipeline and replaces its width.
-  EXPECT_NEAR(m.BacklashWidthMm(),
-              theta * 0.8 * (p("friction_backlash.a") + p("friction_backlash.b_per_n") * friction(0.0)),
-              1e-12);
+  EXPECT_NEAR(
+      m.BacklashWidthMm(),
+      theta * 0.8 * (p("friction_backlash.a") + p("friction_backlash.b_per_n") * friction(0.0)),
+      1e-12);
   EXPECT_EQ(m.TraversalTimeConstantS(), p("deadzone_traversal.tau_s"));
   EXPECT_EQ(m.SensorDelayS(), p("sensor_delay.delay_s"));
   EXPECT_EQ(m.SensorScale(), p("tip_sensor_scale.scale"));
@@ -196,9 +202,9 @@ TEST(TransmissionModel, SetConfigRefreshesTheDerivedQuantities) {
   g.sheath_id_mm = 1.4;
   m.set_config(g);
   const double theta = std::numbers::pi / 4.0;
-  const double level = (m.GetParameter("coulomb_friction.f0_n") +
-                        m.GetParameter("coulomb_friction.mu_tip") * 4.0) *
-                       std::exp(m.GetParameter("capstan_friction.mu") * theta);
+  const double level =
+      (m.GetParameter("coulomb_friction.f0_n") + m.GetParameter("coulomb_friction.mu_tip") * 4.0) *
+      std::exp(m.GetParameter("capstan_friction.mu") * theta);
   EXPECT_NEAR(m.FrictionLevelN(), level, 1e-12);
   EXPECT_NEAR(m.BacklashWidthMm(), theta * 0.6, 1e-12);
   EXPECT_EQ(m.config().tip_load_n, 4.0);

@@ -38,9 +38,8 @@ class TempDir {
     static std::atomic<unsigned> counter{0};
     std::random_device rd;
     const auto stamp = std::chrono::steady_clock::now().time_since_epoch().count();
-    path_ = fs::temp_directory_path() /
-            ("echoservo_trial_io_" + std::to_string(rd()) + "_" + std::to_string(stamp) + "_" +
-             std::to_string(counter++));
+    path_ = fs::temp_directory_path() / ("echoservo_trial_io_" + std::to_string(rd()) + "_" +
+                                         std::to_string(stamp) + "_" + std::to_string(counter++));
     fs::create_directories(path_);
   }
   ~TempDir() {
@@ -103,7 +102,8 @@ void ExpectTrialError(const std::function<void()>& fn, const std::vector<std::st
   } catch (const TrialFormatError& e) {
     const std::string msg = e.what();
     for (const std::string& needle : needles) {
-      EXPECT_NE(msg.find(needle), std::string::npos) << "message: " << msg << "\nmissing: " << needle;
+      EXPECT_NE(msg.find(needle), std::string::npos)
+          << "message: " << msg << "\nmissing: " << needle;
     }
   }
 }
@@ -157,7 +157,8 @@ TEST(TrialIo, RoundTripIsExact) {
   EXPECT_TRUE(out.warnings.empty());
 
   const std::string csv = ReadText(dir.path() / "nested" / "out" / "sample_trial.csv");
-  EXPECT_EQ(csv.rfind("t,base_cmd,base,tip,force,motor_current_a,z_extra\n", 0), 0u) << csv.substr(0, 80);
+  EXPECT_EQ(csv.rfind("t,base_cmd,base,tip,force,motor_current_a,z_extra\n", 0), 0u)
+      << csv.substr(0, 80);
   EXPECT_FALSE(fs::exists(dir.path() / "nested" / "out" / "sample_trial.csv.tmp"));
 }
 
@@ -165,7 +166,8 @@ TEST(TrialIo, RewriteOfReadTrialIsIdentical) {
   TempDir dir;
   WriteTrial(dir.path() / "a", SampleTrial());
   WriteTrial(dir.path() / "b", ReadTrial(dir.path() / "a" / "sample_trial.csv"));
-  EXPECT_EQ(ReadText(dir.path() / "a" / "sample_trial.csv"), ReadText(dir.path() / "b" / "sample_trial.csv"));
+  EXPECT_EQ(ReadText(dir.path() / "a" / "sample_trial.csv"),
+            ReadText(dir.path() / "b" / "sample_trial.csv"));
   EXPECT_EQ(ReadText(dir.path() / "a" / "sample_trial.json"),
             ReadText(dir.path() / "b" / "sample_trial.json"));
 }
@@ -286,7 +288,8 @@ TEST(TrialIoError, MissingCsvFile) {
 TEST(TrialIoError, MissingSiblingJson) {
   TempDir dir;
   WriteText(dir.path() / "lonely.csv", kGoodCsv);
-  ExpectTrialError([&] { ReadTrial(dir.path() / "lonely.csv"); }, {"lonely.json", "lonely.csv", "not found"});
+  ExpectTrialError([&] { ReadTrial(dir.path() / "lonely.csv"); },
+                   {"lonely.json", "lonely.csv", "not found"});
 }
 
 TEST(TrialIoError, EmptyFile) {
@@ -295,9 +298,11 @@ TEST(TrialIoError, EmptyFile) {
 }
 
 TEST(TrialIoError, MissingRequiredColumn) {
-  ExpectCsvError("t,base_cmd,base,force\n0,0,0,0\n1,1,1,1\n", {"line 1", "missing required column 'tip'"});
+  ExpectCsvError("t,base_cmd,base,force\n0,0,0,0\n1,1,1,1\n",
+                 {"line 1", "missing required column 'tip'"});
   ExpectCsvError("time,base_cmd,base,tip,force\n0,0,0,0,0\n1,1,1,1,1\n", {"line 1", "'t'"});
-  ExpectCsvError("t,tip\n0,0\n1,1\n", {"line 1", "missing required columns 'base_cmd', 'base', 'force'"});
+  ExpectCsvError("t,tip\n0,0\n1,1\n",
+                 {"line 1", "missing required columns 'base_cmd', 'base', 'force'"});
 }
 
 TEST(TrialIoError, DuplicateColumnName) {
@@ -307,20 +312,25 @@ TEST(TrialIoError, DuplicateColumnName) {
 }
 
 TEST(TrialIoError, WrongFieldCount) {
-  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,0,0\n", {"line 3", "expected 5 fields", "found 4"});
+  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,0,0\n",
+                 {"line 3", "expected 5 fields", "found 4"});
   ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0,\n0.001,0,0,0,0\n", {"line 2", "found 6"});
 }
 
 TEST(TrialIoError, FieldNotANumber) {
   ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,abc,0,0\n",
                  {"line 3", "column 'base'", "not a number", "\"abc\""});
-  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,0,0,\n", {"line 3", "column 'force'", "\"\""});
-  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,0,1.5.2,0\n", {"line 3", "\"1.5.2\""});
-  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,0,0x10,0\n", {"line 3", "\"0x10\""});
+  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,0,0,\n",
+                 {"line 3", "column 'force'", "\"\""});
+  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,0,1.5.2,0\n",
+                 {"line 3", "\"1.5.2\""});
+  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,0,0x10,0\n",
+                 {"line 3", "\"0x10\""});
   // Long text is quoted but truncated.
   const std::string junk(5000, 'q');
   TempDir dir;
-  WriteText(dir.path() / "long.csv", "t,base_cmd,base,tip,force\n0,0,0,0,0\n1," + junk + ",0,0,0\n");
+  WriteText(dir.path() / "long.csv",
+            "t,base_cmd,base,tip,force\n0,0,0,0,0\n1," + junk + ",0,0,0\n");
   WriteText(dir.path() / "long.json", kGoodJson);
   try {
     ReadTrial(dir.path() / "long.csv");
@@ -349,13 +359,15 @@ TEST(TrialIoError, NanOrInfinity) {
     ExpectCsvError(std::string("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,0,") + bad + ",0\n",
                    {"line 3", "column 'tip'", "NaN or infinity", bad});
   }
-  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,1e999,0,0,0\n", {"line 3", "out of the range", "1e999"});
+  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,1e999,0,0,0\n",
+                 {"line 3", "out of the range", "1e999"});
 }
 
 TEST(TrialIoError, TimesNotStrictlyIncreasing) {
   ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n0.001,0,0,0,0\n0.001,0,0,0,0\n",
                  {"line 4", "column 't'", "strictly increasing", "on line 3"});
-  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n-0.001,0,0,0,0\n", {"line 3", "strictly increasing"});
+  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n-0.001,0,0,0,0\n",
+                 {"line 3", "strictly increasing"});
 }
 
 TEST(TrialIoError, TooFewSamples) {
@@ -364,29 +376,35 @@ TEST(TrialIoError, TooFewSamples) {
 }
 
 TEST(TrialIoError, BlankLineInsideData) {
-  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n\n0.001,0,0,0,0\n", {"line 3", "empty line"});
+  ExpectCsvError("t,base_cmd,base,tip,force\n0,0,0,0,0\n\n0.001,0,0,0,0\n",
+                 {"line 3", "empty line"});
 }
 
 // --------------------------------------------------------------- JSON errors
 
 TEST(TrialIoError, JsonParseError) {
-  ExpectJsonError(R"({"sheath_id_mm": 1.6, "guidewire_od_mm": })", {"JSON parse error", "parse_error"});
+  ExpectJsonError(R"({"sheath_id_mm": 1.6, "guidewire_od_mm": })",
+                  {"JSON parse error", "parse_error"});
   ExpectJsonError("", {"JSON parse error"});
   ExpectJsonError(std::string(1000, '[') + std::string(1000, ']'), {"nested deeper"});
 }
 
 TEST(TrialIoError, JsonWrongTypes) {
   ExpectJsonError("[1, 2]", {"top level must be a JSON object", "array"});
-  ExpectJsonError(R"({"sheath_id_mm": "1.6", "guidewire_od_mm": 0.8, "bends": [], "tip_load_n": 0})",
-                  {"'sheath_id_mm'", "must be a number", "string"});
+  ExpectJsonError(
+      R"({"sheath_id_mm": "1.6", "guidewire_od_mm": 0.8, "bends": [], "tip_load_n": 0})",
+      {"'sheath_id_mm'", "must be a number", "string"});
   ExpectJsonError(R"({"sheath_id_mm": 1.6, "guidewire_od_mm": true, "bends": [], "tip_load_n": 0})",
                   {"'guidewire_od_mm'", "must be a number", "boolean"});
-  ExpectJsonError(R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "bends": [], "tip_load_n": null})",
-                  {"'tip_load_n'", "must be a number", "null"});
-  ExpectJsonError(R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "bends": [], "tip_load_n": 0, "meta": 3})",
-                  {"'meta'", "must be an object"});
-  ExpectJsonError(R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "bends": [[90, 5]], "tip_load_n": 0})",
-                  {"'bends[0]'", "must be an object"});
+  ExpectJsonError(
+      R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "bends": [], "tip_load_n": null})",
+      {"'tip_load_n'", "must be a number", "null"});
+  ExpectJsonError(
+      R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "bends": [], "tip_load_n": 0, "meta": 3})",
+      {"'meta'", "must be an object"});
+  ExpectJsonError(
+      R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "bends": [[90, 5]], "tip_load_n": 0})",
+      {"'bends[0]'", "must be an object"});
   ExpectJsonError(
       R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "bends": [{"angle_deg": 90, "radius_mm": "5"}],
           "tip_load_n": 0})",
@@ -394,10 +412,13 @@ TEST(TrialIoError, JsonWrongTypes) {
 }
 
 TEST(TrialIoError, JsonMissingKey) {
-  ExpectJsonError(R"({"sheath_id_mm": 1.6, "bends": [], "tip_load_n": 0})", {"missing key 'guidewire_od_mm'"});
-  ExpectJsonError(R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "tip_load_n": 0})", {"missing key 'bends'"});
-  ExpectJsonError(R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "bends": [{"angle_deg": 90}], "tip_load_n": 0})",
-                  {"missing key 'bends[0].radius_mm'"});
+  ExpectJsonError(R"({"sheath_id_mm": 1.6, "bends": [], "tip_load_n": 0})",
+                  {"missing key 'guidewire_od_mm'"});
+  ExpectJsonError(R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "tip_load_n": 0})",
+                  {"missing key 'bends'"});
+  ExpectJsonError(
+      R"({"sheath_id_mm": 1.6, "guidewire_od_mm": 0.8, "bends": [{"angle_deg": 90}], "tip_load_n": 0})",
+      {"missing key 'bends[0].radius_mm'"});
 }
 
 TEST(TrialIoError, BendsNotAList) {
@@ -425,13 +446,15 @@ TEST(TrialIoError, NonPhysicalGeometry) {
 
 TEST(TrialDatasetError, MissingFolder) {
   TempDir dir;
-  ExpectTrialError([&] { ReadDataset(dir.path() / "absent_folder"); }, {"absent_folder", "not found"});
+  ExpectTrialError([&] { ReadDataset(dir.path() / "absent_folder"); },
+                   {"absent_folder", "not found"});
 }
 
 TEST(TrialDatasetError, NotADirectory) {
   TempDir dir;
   WriteText(dir.path() / "plain_file", "x");
-  ExpectTrialError([&] { ReadDataset(dir.path() / "plain_file"); }, {"plain_file", "not a directory"});
+  ExpectTrialError([&] { ReadDataset(dir.path() / "plain_file"); },
+                   {"plain_file", "not a directory"});
 }
 
 TEST(TrialDatasetError, NoTrials) {
@@ -445,7 +468,8 @@ TEST(TrialDatasetError, CsvWithoutSiblingJson) {
   WriteText(dir.path() / "a.csv", kGoodCsv);
   WriteText(dir.path() / "a.json", kGoodJson);
   WriteText(dir.path() / "b_orphan.csv", kGoodCsv);
-  ExpectTrialError([&] { ReadDataset(dir.path()); }, {"b_orphan.csv", "b_orphan.json", "no sibling JSON"});
+  ExpectTrialError([&] { ReadDataset(dir.path()); },
+                   {"b_orphan.csv", "b_orphan.json", "no sibling JSON"});
 }
 
 TEST(TrialDatasetError, InvalidTrialNamesItsFile) {
