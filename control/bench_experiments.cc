@@ -23,15 +23,7 @@ hw::PlantOptions SweepPlant(const SweepOptions& options, const hw::CatheterConfi
                             bool seed_model_default) {
   hw::PlantOptions o = seed_model_default ? hw::SeedModelPlant(config, options.seed)
                                           : hw::SeedCalibratedPlant(config, options.seed);
-  if (!options.effects.empty()) {
-    o.effects = options.effects;
-    // Keep only the default parameter values of effects still present.
-    std::erase_if(o.parameters, [&](const auto& p) {
-      const std::string effect = p.first.substr(0, p.first.find('.'));
-      return std::find(o.effects.begin(), o.effects.end(), effect) == o.effects.end();
-    });
-  }
-  for (const auto& p : options.parameters) o.parameters.push_back(p);
+  hw::SelectEffects(o, options.effects, options.parameters);
   return o;
 }
 

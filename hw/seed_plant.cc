@@ -1,5 +1,7 @@
 #include "hw/seed_plant.h"
 
+#include <algorithm>
+
 namespace echoservo::hw {
 
 PlantOptions SeedCalibratedPlant(const CatheterConfig& config, std::uint64_t seed) {
@@ -26,6 +28,18 @@ PlantOptions SeedModelPlant(const CatheterConfig& config, std::uint64_t seed) {
   o.effects = {"coulomb_friction", "viscous_friction", "backlash"};
   o.parameters = {{"coulomb_friction.f0_n", 1.0}, {"viscous_friction.b_n_per_mm_s", 0.006}};
   return o;
+}
+
+void SelectEffects(PlantOptions& plant, const std::vector<std::string>& effects,
+                   const std::vector<std::pair<std::string, double>>& overrides) {
+  if (!effects.empty()) {
+    plant.effects = effects;
+    std::erase_if(plant.parameters, [&](const auto& p) {
+      const std::string effect = p.first.substr(0, p.first.find('.'));
+      return std::find(effects.begin(), effects.end(), effect) == effects.end();
+    });
+  }
+  for (const auto& p : overrides) plant.parameters.push_back(p);
 }
 
 CatheterConfig SeedTrackingCatheter() {

@@ -10,6 +10,8 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "hw/simulated_catheter.h"
@@ -21,6 +23,12 @@ inline constexpr double kSeedSealLoadN = 1.0;
 
 PlantOptions SeedCalibratedPlant(const CatheterConfig& config, std::uint64_t seed = 1);
 PlantOptions SeedModelPlant(const CatheterConfig& config, std::uint64_t seed = 1);
+
+// Replaces a plant's effects (when `effects` is not empty) keeping the configured
+// parameter values of the effects that remain, then applies `overrides`
+// ("<effect>.<parameter>" = value). Unknown names are rejected when the plant is built.
+void SelectEffects(PlantOptions& plant, const std::vector<std::string>& effects,
+                   const std::vector<std::pair<std::string, double>>& overrides);
 
 // The seed's evaluation catheter with its tip seal.
 CatheterConfig SeedTrackingCatheter();

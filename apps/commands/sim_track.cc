@@ -10,6 +10,7 @@
 #include "apps/commands/sim_commands.h"
 #include "apps/output.h"
 #include "control/track_experiment.h"
+#include "hw/seed_plant.h"
 #include "hw/trial.h"
 
 namespace echoservo::apps {
@@ -45,12 +46,7 @@ nlohmann::json RunOne(const TrackFlags& f, const std::string& trajectory,
   o.duration_s = f.duration_s;
   o.metrics_start_s = f.metrics_start_s;
   o.iterations = f.iterations;
-  if (!f.plant.effects.empty()) o.plant.effects = f.plant.Effects();
-  std::erase_if(o.plant.parameters, [&](const auto& p) {
-    return std::find(o.plant.effects.begin(), o.plant.effects.end(),
-                     p.first.substr(0, p.first.find('.'))) == o.plant.effects.end();
-  });
-  for (const auto& p : f.plant.Parameters()) o.plant.parameters.push_back(p);
+  hw::SelectEffects(o.plant, f.plant.Effects(), f.plant.Parameters());
   o.plant.seed = f.plant.seed;
   o.servo = control::SeedServoConfig(o.plant, o.friction_feedforward);
   const control::TrackResult r = control::RunTrackExperiment(o);
