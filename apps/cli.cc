@@ -1,5 +1,7 @@
 #include "apps/cli.h"
 
+#include "apps/commands/lab_commands.h"
+
 #include <CLI/CLI.hpp>
 #include <exception>
 #include <iostream>
@@ -12,6 +14,7 @@ int RunCli(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", "echoservo 0.1.0");
   AddSimCommands(app);
+  AddLabCommands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

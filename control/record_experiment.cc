@@ -49,8 +49,8 @@ std::string MetaJson(const hw::PlantOptions& plant, const std::string& trajector
 
 void RecordOptions::Validate() const {
   if (out_dir.empty()) throw std::invalid_argument("record: --out is required");
-  if (configs != "table1" && configs != "seed") {
-    throw std::invalid_argument("record: --configs must be table1 or seed, got '" + configs + "'");
+  if (configs != "table1" && configs != "seed" && configs != "lab") {
+    throw std::invalid_argument("record: --configs must be table1, seed or lab, got '" + configs + "'");
   }
   if (trajectories.empty()) throw std::invalid_argument("record: --trajectories is empty");
   for (const std::string& t : trajectories) MakeTrajectory(t);  // throws naming the spec
@@ -69,6 +69,26 @@ void RecordOptions::Validate() const {
 }
 
 std::vector<hw::CatheterConfig> RecordConfigs(const std::string& name, double tip_load_n) {
+  if (name == "lab") {
+    // Eight catheters that vary gap, total bend angle and tip load independently, so
+    // that effects scaling with each can be told apart (the tip load given is added).
+    struct Row {
+      double id, od, bend_deg, load;
+    };
+    const Row rows[] = {{1.59, 0.76, 180, 0.0}, {1.59, 0.76, 360, 1.5}, {2.38, 2.23, 180, 1.5},
+                        {2.38, 2.23, 360, 0.0}, {2.38, 1.50, 90, 0.5},  {2.38, 1.50, 270, 2.0},
+                        {1.59, 1.50, 360, 1.0}, {1.59, 0.76, 90, 3.0}};
+    std::vector<hw::CatheterConfig> out;
+    for (const Row& r : rows) {
+      hw::CatheterConfig c;
+      c.sheath_id_mm = r.id;
+      c.guidewire_od_mm = r.od;
+      c.bends = {{0.5 * r.bend_deg, 50.0}, {0.5 * r.bend_deg, 25.0}};
+      c.tip_load_n = r.load + tip_load_n;
+      out.push_back(c);
+    }
+    return out;
+  }
   if (name == "seed") {
     hw::CatheterConfig c = hw::CatheterConfig::SeedEvaluation();
     c.tip_load_n = tip_load_n;

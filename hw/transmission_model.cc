@@ -59,6 +59,14 @@ void TransmissionModel::set_parameters(const std::vector<double>& values) {
   Refresh();
 }
 
+void TransmissionModel::SetParametersForFit(const double* values) {
+  for (std::size_t i = 0; i < params_.size(); ++i) {
+    assert(std::isfinite(values[i]));
+    params_[i] = values[i];
+  }
+  Refresh();
+}
+
 void TransmissionModel::SetParameter(std::string_view name, double value) {
   std::vector<double> values = params_;
   for (std::size_t i = 0; i < info_.size(); ++i) {
@@ -96,10 +104,7 @@ double TransmissionModel::DriveMm(double base_mm, double friction_force_n) const
 }
 
 double TransmissionModel::StepTip(double tip_mm, double drive_mm, double dt_s) const {
-  const double half = 0.5 * width_mm_;
-  const double target = std::clamp(tip_mm, drive_mm - half, drive_mm + half);
-  if (tau_s_ <= 0.0) return target;
-  return tip_mm + (target - tip_mm) * (1.0 - std::exp(-dt_s / tau_s_));
+  return StepTipWithFraction(tip_mm, drive_mm, TraversalFraction(dt_s));
 }
 
 void TransmissionModel::Refresh() {

@@ -8,6 +8,8 @@
 // Units: mm, s, N. Positions are along the catheter axis in the base frame.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -41,6 +43,9 @@ class TransmissionModel {
   // Throws std::invalid_argument on a wrong size, a non-finite value or one outside the
   // parameter's physical bounds (naming it).
   void set_parameters(const std::vector<double>& values);
+  // For fitters: sets num_parameters() values without the bounds check (numeric
+  // differentiation may probe just outside a bound). Values must be finite (asserted).
+  void SetParametersForFit(const double* values);
   // `name` is "<effect>.<parameter>"; throws for an unknown name or an out-of-bounds value.
   void SetParameter(std::string_view name, double value);
   double GetParameter(std::string_view name) const;
@@ -60,6 +65,14 @@ class TransmissionModel {
   // outside it, it moves to the band edge at once or, with deadzone traversal, as a
   // first-order lag with time constant τ.
   double StepTip(double tip_mm, double drive_mm, double dt_s) const;
+  // The same with the traversal fraction 1 − exp(−dt/τ) precomputed by the caller
+  // (TraversalFraction(dt)), for loops over uniformly sampled data.
+  double TraversalFraction(double dt_s) const { return tau_s_ > 0.0 ? 1.0 - std::exp(-dt_s / tau_s_) : 1.0; }
+  double StepTipWithFraction(double tip_mm, double drive_mm, double fraction) const {
+    const double half = 0.5 * width_mm_;
+    const double target = std::clamp(tip_mm, drive_mm - half, drive_mm + half);
+    return tip_mm + (target - tip_mm) * fraction;
+  }
 
  private:
   void Refresh();

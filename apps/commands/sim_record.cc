@@ -98,7 +98,7 @@ void AddSimRecord(CLI::App* sim) {
       "Run chosen configurations/trajectories/effects and write a dataset in the trial format");
   cmd->add_option("--out", flags->out, "Output folder (created)")->required();
   cmd->add_option("--configs", flags->configs,
-                  "table1 (24 Table I configurations) | seed (the tracking catheter)");
+                  "table1 (24 Table I configurations) | seed (the tracking catheter) | lab (8 catheters varying gap, bend angle, tip load)");
   cmd->add_option(
       "--trajectories", flags->trajectories,
       "Comma-separated trajectory specs: sine, sine:A:F, triangle:A:V, mitral, mitral:BPM:P2P");

@@ -1,0 +1,230 @@
+// `echoservo lab compare|diagnose|report`: the model lab.
+#include "apps/commands/lab_commands.h"
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "apps/output.h"
+#include "estimation/diagnosis.h"
+#include "estimation/model_fit.h"
+#include "hw/effect_registry.h"
+
+namespace echoservo::apps {
+namespace {
+
+struct LabFlags {
+  std::string dataset;
+  std::string model = "seed";
+  bool skip_bad = false;
+  bool json = false;
+  int stride = 4;
+  std::string residuals_dir;
+};
+
+// Writes each trial with its model predictions as extra columns (trial format).
+void WriteResiduals(const std::string& dir, const estimation::LabDataset& ds, const estimation::FitResult& r) {
+  for (std::size_t k = 0; k < r.trials.size(); ++k) {
+    hw::Trial t = ds.trials[k].trial;
+    t.extra_names = {"tip_model", "force_model", "velocity"};
+    t.extra_columns = {r.trials[k].prediction.tip_mm, r.trials[k].prediction.force_n, ds.trials[k].velocity_mm_s};
+    hw::WriteTrial(dir, t);
+  }
+}
+
+estimation::LabDataset Load(const LabFlags& f) {
+  estimation::LabDatasetOptions o;
+  o.skip_bad = f.skip_bad;
+  o.stride = f.stride;
+  estimation::LabDataset ds = estimation::LoadLabDataset(f.dataset, o);
+  for (const std::string& s : ds.skipped) std::cerr << "echoservo: skipped " << s << "\n";
+  return ds;
+}
+
+// Progress lines go to stderr, and only once the command has run for more than a second.
+estimation::FitOptions Options() {
+  estimation::FitOptions o;
+  const auto start = std::chrono::steady_clock::now();
+  o.progress = [start](const std::string& line) {
+    if (std::chrono::steady_clock::now() - start > std::chrono::seconds(1)) {
+      std::cerr << "echoservo: " << line << "\n";
+    }
+  };
+  return o;
+}
+
+nlohmann::json ParamsJson(const estimation::FitResult& r) {
+  nlohmann::json p = nlohmann::json::object();
+  for (const auto& e : r.estimates) {
+    p[e.name] = {{"value", e.value}, {"sd", std::isfinite(e.sd) ? nlohmann::json(e.sd) : nlohmann::json(nullptr)},
+                 {"unit", e.unit}};
+  }
+  return p;
+}
+
+nlohmann::json GroupsJson(const std::vector<estimation::GroupStat>& groups) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& g : groups) {
+    out.push_back({{"group", g.label}, {"samples", g.samples}, {"tip_rms_mm", g.tip_rms_mm},
+                   {"force_rms_n", g.force_rms_n}, {"sample_share", g.sample_share},
+                   {"tip_share", g.tip_share}, {"force_share", g.force_share}});
+  }
+  return out;
+}
+
+nlohmann::json BreakdownJson(const estimation::Breakdown& b) {
+  return {{"phase", GroupsJson(b.phase)}, {"speed", GroupsJson(b.speed)}, {"gap", GroupsJson(b.gap)},
+          {"bend", GroupsJson(b.bend)}, {"tip_load", GroupsJson(b.tip_load)}, {"trial", GroupsJson(b.trial)}};
+}
+
+void PrintGroups(const char* title, const std::vector<estimation::GroupStat>& groups) {
+  std::cout << "\nby " << title << ":\n";
+  Table t({"group", "samples", "tip_rms_mm", "share_of_tip_sq", "force_rms_n", "share_of_force_sq"});
+  for (const auto& g : groups) {
+    t.AddRow({g.label, std::to_string(g.samples), Fixed(g.tip_rms_mm, 4), Fixed(100 * g.tip_share, 1) + "%",
+              Fixed(g.force_rms_n, 4), Fixed(100 * g.force_share, 1) + "%"});
+  }
+  t.Print(std::cout);
+}
+
+void RunCompare(const LabFlags& f) {
+  const estimation::LabDataset ds = Load(f);
+  const auto effects = hw::ParseModelSpec(f.model, hw::EffectRegistry::WithBuiltinEffects());
+  const estimation::FitResult r = estimation::FitModel(effects, ds, Options());
+  if (!f.residuals_dir.empty()) WriteResiduals(f.residuals_dir, ds, r);
+  const estimation::Breakdown breakdown = estimation::ComputeBreakdown(ds, r);
+  if (f.json) {
+    nlohmann::json trials = nlohmann::json::array();
+    for (const auto& t : r.trials) {
+      trials.push_back({{"trial", t.name}, {"rms_mm", t.stats.tip_rms_mm}, {"mae_mm", t.stats.tip_mae_mm},
+                        {"max_mm", t.stats.tip_max_mm}, {"force_rms_n", t.stats.force_rms_n},
+                        {"tip_offset_mm", t.nuisance.tip_offset_mm}, {"contact", t.nuisance.contact}});
+    }
+    std::cout << nlohmann::json{{"model", hw::FormatModelSpec(effects)},
+                                {"rms_mm", r.overall.tip_rms_mm},
+                                {"mae_mm", r.overall.tip_mae_mm},
+                                {"max_mm", r.overall.tip_max_mm},
+                                {"force_rms_n", r.overall.force_rms_n},
+                                {"noise", {{"tip_mm", ds.noise.tip_mm}, {"force_n", ds.noise.force_n}}},
+                                {"params", ParamsJson(r)},
+                                {"trials", trials},
+                                {"breakdown", BreakdownJson(breakdown)},
+                                {"skipped", ds.skipped},
+                                {"fit_seconds", r.seconds}}
+                     .dump(2)
+              << "\n";
+    return;
+  }
+  std::cout << "model " << hw::FormatModelSpec(effects) << ": tip RMS " << Fixed(r.overall.tip_rms_mm, 4)
+            << " mm, MAE " << Fixed(r.overall.tip_mae_mm, 4) << " mm, max " << Fixed(r.overall.tip_max_mm, 3)
+            << " mm; force RMS " << Fixed(r.overall.force_rms_n, 4) << " N (noise: tip "
+            << Fixed(ds.noise.tip_mm, 4) << " mm, force " << Fixed(ds.noise.force_n, 4) << " N)\n\n";
+  Table p({"parameter", "value", "sd", "unit"});
+  for (const auto& e : r.estimates) p.AddRow({e.name, Fixed(e.value, 5), std::isfinite(e.sd) ? Fixed(e.sd, 5) : "-", e.unit});
+  p.Print(std::cout);
+  std::cout << "\n";
+  Table t({"trial", "tip_rms_mm", "tip_mae_mm", "tip_max_mm", "force_rms_n"});
+  for (const auto& tr : r.trials) {
+    t.AddRow({tr.name, Fixed(tr.stats.tip_rms_mm, 4), Fixed(tr.stats.tip_mae_mm, 4), Fixed(tr.stats.tip_max_mm, 3),
+              Fixed(tr.stats.force_rms_n, 4)});
+  }
+  t.Print(std::cout);
+  std::cout << "\nWhere the model fails (share of each channel's squared residual):";
+  PrintGroups("phase of motion", breakdown.phase);
+  PrintGroups("base speed", breakdown.speed);
+  PrintGroups("gap", breakdown.gap);
+  PrintGroups("total bend angle", breakdown.bend);
+  PrintGroups("tip load", breakdown.tip_load);
+}
+
+nlohmann::json DiagnosisJson(const estimation::Diagnosis& d) {
+  nlohmann::json candidates = nlohmann::json::array();
+  for (const auto& c : d.candidates) {
+    candidates.push_back({{"effect", c.effect},
+                          {"rms_mm", c.fit.overall.tip_rms_mm},
+                          {"mae_mm", c.fit.overall.tip_mae_mm},
+                          {"force_rms_n", c.fit.overall.force_rms_n},
+                          {"cv_tip_mse_noise", c.cv.tip_mse},
+                          {"cv_force_mse_noise", c.cv.force_mse},
+                          {"tip_explained", c.tip_explained},
+                          {"force_explained", c.force_explained},
+                          {"score", c.score},
+                          {"significant", c.significant},
+                          {"channel", c.channel},
+                          {"params", ParamsJson(c.fit)},
+                          {"evidence", c.evidence}});
+  }
+  return {{"model", hw::FormatModelSpec(d.model)},
+          {"rms_mm", d.base.overall.tip_rms_mm},
+          {"mae_mm", d.base.overall.tip_mae_mm},
+          {"force_rms_n", d.base.overall.force_rms_n},
+          {"cv_tip_mse_noise", d.base_cv.tip_mse},
+          {"cv_force_mse_noise", d.base_cv.force_mse},
+          {"params", ParamsJson(d.base)},
+          {"adequate", d.adequate},
+          {"verdict", d.verdict},
+          {"candidates", candidates}};
+}
+
+void RunDiagnose(const LabFlags& f) {
+  const estimation::LabDataset ds = Load(f);
+  const auto effects = hw::ParseModelSpec(f.model, hw::EffectRegistry::WithBuiltinEffects());
+  estimation::DiagnoseOptions o;
+  o.fit = Options();
+  const estimation::Diagnosis d = estimation::Diagnose(effects, ds, o);
+  if (f.json) {
+    nlohmann::json j = DiagnosisJson(d);
+    j["noise"] = {{"tip_mm", ds.noise.tip_mm}, {"force_n", ds.noise.force_n}};
+    j["skipped"] = ds.skipped;
+    std::cout << j.dump(2) << "\n";
+    return;
+  }
+  std::cout << "model " << hw::FormatModelSpec(effects) << ": tip RMS " << Fixed(d.base.overall.tip_rms_mm, 4)
+            << " mm, force RMS " << Fixed(d.base.overall.force_rms_n, 4) << " N (noise: tip "
+            << Fixed(ds.noise.tip_mm, 4) << " mm, force " << Fixed(ds.noise.force_n, 4) << " N)\n\n";
+  Table t({"rank", "candidate", "tip_rms_mm", "force_rms_n", "held-out tip excess removed", "force excess removed",
+           "significant"});
+  int rank = 1;
+  for (const auto& c : d.candidates) {
+    t.AddRow({std::to_string(rank++), "+" + c.effect, Fixed(c.fit.overall.tip_rms_mm, 4),
+              Fixed(c.fit.overall.force_rms_n, 4), Fixed(100 * c.tip_explained, 0) + "%",
+              Fixed(100 * c.force_explained, 0) + "%", c.significant ? "yes" : "no"});
+  }
+  t.Print(std::cout);
+  std::cout << "\n" << (d.adequate ? "ADEQUATE" : "MISSING") << ": " << d.verdict << "\n";
+  if (!d.adequate) {
+    std::cout << "\nnext: echoservo lab compare " << f.dataset << " --model " << hw::FormatModelSpec(effects) << "+"
+              << d.candidates.front().effect << "\n";
+  }
+}
+
+void AddCommon(CLI::App* cmd, LabFlags& f) {
+  cmd->add_option("DATASET", f.dataset, "Folder of trials (CSV + JSON pairs, docs/trial_format.md)")->required();
+  cmd->add_option("--model", f.model, "Model SPEC, e.g. seed or seed+capstan_friction");
+  cmd->add_flag("--skip-bad", f.skip_bad, "Skip invalid trials (each is listed) instead of failing");
+  cmd->add_option("--stride", f.stride, "Use every N-th sample as a residual (default 4: 250 Hz from 1 kHz)");
+  cmd->add_flag("--json", f.json, "Print JSON");
+}
+
+}  // namespace
+
+void AddLabCommands(CLI::App& app) {
+  auto* lab = app.add_subcommand("lab", "The model lab: compare a catheter model with measurements, diagnose what it misses");
+  lab->require_subcommand(1);
+  auto flags = std::make_shared<LabFlags>();
+  auto* compare = lab->add_subcommand("compare", "Fit a model to all trials; errors, parameters, where it fails");
+  AddCommon(compare, *flags);
+  compare->add_option("--residuals", flags->residuals_dir,
+                      "Write every trial with the model's tip and force as extra columns into this folder");
+  compare->callback([flags] { RunCompare(*flags); });
+  auto dflags = std::make_shared<LabFlags>();
+  auto* diagnose = lab->add_subcommand(
+      "diagnose", "Refit the model plus each missing catalog effect; rank them on held-out trials");
+  AddCommon(diagnose, *dflags);
+  diagnose->callback([dflags] { RunDiagnose(*dflags); });
+}
+
+}  // namespace echoservo::apps
