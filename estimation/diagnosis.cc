@@ -242,4 +242,22 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds, 
   return d;
 }
 
+std::vector<LadderStep> ErrorLadder(const std::vector<std::string>& model, const LabDataset& ds,
+                                    const DiagnoseOptions& o, int max_rounds) {
+  std::vector<LadderStep> ladder;
+  std::vector<std::string> current = model;
+  for (int round = 0; round <= max_rounds; ++round) {
+    LadderStep step;
+    step.model = current;
+    step.diagnosis = Diagnose(current, ds, o);
+    const bool done = step.diagnosis.adequate || round == max_rounds;
+    const std::string next = done ? std::string() : step.diagnosis.candidates.front().effect;
+    ladder.push_back(std::move(step));
+    if (done) break;
+    current.push_back(next);
+    current = hw::ParseModelSpec(hw::FormatModelSpec(current), Catalog(o.fit));
+  }
+  return ladder;
+}
+
 }  // namespace echoservo::estimation

@@ -58,6 +58,16 @@ struct Diagnosis {
 Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& dataset,
                    const DiagnoseOptions& options);
 
+// The error ladder: starting from `model`, diagnose, add the best significant candidate,
+// and repeat until the model is adequate or `max_rounds` effects were added. One step
+// per model visited (the first is `model` itself), each with its diagnosis.
+struct LadderStep {
+  std::vector<std::string> model;
+  Diagnosis diagnosis;
+};
+std::vector<LadderStep> ErrorLadder(const std::vector<std::string>& model, const LabDataset& dataset,
+                                    const DiagnoseOptions& options, int max_rounds = 4);
+
 // Held-out scores of `effects` (exposed for tests).
 CrossValidation CrossValidate(const std::vector<std::string>& effects, const LabDataset& dataset,
                               const FitOptions& options, int folds, const std::vector<double>* initial);
