@@ -21,7 +21,8 @@ const hw::EffectRegistry& Catalog(const FitOptions& o) {
 
 std::string Percent(double fraction) {
   char buf[32];
-  std::snprintf(buf, sizeof buf, "%.0f%%", 100.0 * fraction);
+  const double pct = std::round(100.0 * fraction);
+  std::snprintf(buf, sizeof buf, "%.0f%%", pct == 0.0 ? 0.0 : pct);  // never "-0%"
   return buf;
 }
 

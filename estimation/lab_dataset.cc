@@ -14,15 +14,19 @@ double Median(std::vector<double> v) {
   return *mid;
 }
 
-// Centred difference over ±window/2, shrinking at the ends.
+// Centred difference over ±window/2, shrinking at the ends. The half window has a
+// relative slack of 1e-9 so that rounding in the time stamps (0.068 − 0.063 >
+// 0.005 in doubles) cannot drop a sample from one side only, which would turn the
+// centred difference into a biased one-sided one.
 std::vector<double> Derivative(const std::vector<double>& t, const std::vector<double>& x, double window_s) {
   const std::size_t n = x.size();
   std::vector<double> d(n, 0.0);
   std::size_t lo = 0;
   std::size_t hi = 0;
+  const double half = 0.5 * window_s * (1.0 + 1e-9);
   for (std::size_t i = 0; i < n; ++i) {
-    while (t[i] - t[lo] > 0.5 * window_s) ++lo;
-    while (hi + 1 < n && t[hi + 1] - t[i] <= 0.5 * window_s) ++hi;
+    while (t[i] - t[lo] > half) ++lo;
+    while (hi + 1 < n && t[hi + 1] - t[i] <= half) ++hi;
     const double dt = t[hi] - t[lo];
     d[i] = dt > 0.0 ? (x[hi] - x[lo]) / dt : 0.0;
   }
@@ -35,11 +39,16 @@ LabTrial Prepare(hw::Trial trial, const LabDatasetOptions& o) {
   lt.acceleration_mm_s2 = Derivative(trial.t_s, lt.velocity_mm_s, 2.0 * o.velocity_window_s);
   for (std::size_t i = 0; i < trial.size(); i += static_cast<std::size_t>(o.stride)) lt.fit_index.push_back(i);
   // A sample may be stuck if, within ±window/2, the velocity is below the stick speed
-  // or changes sign (the centred difference smears a brief stop over the window).
+  // or changes sign (the centred difference smears a brief stop over the window). Where
+  // the window is cut by the trial's start or end the difference is one-sided and cannot
+  // see a stop (a trial that starts from rest reads the speed of the motion after it),
+  // so those samples count as slow too.
   const std::size_t n = trial.size();
   std::vector<std::uint8_t> slow(n);
   for (std::size_t i = 0; i < n; ++i) {
-    slow[i] = std::abs(lt.velocity_mm_s[i]) < o.stick_speed_mm_s ||
+    const bool truncated = trial.t_s[i] - trial.t_s[0] < 0.5 * o.velocity_window_s ||
+                           trial.t_s[n - 1] - trial.t_s[i] < 0.5 * o.velocity_window_s;
+    slow[i] = truncated || std::abs(lt.velocity_mm_s[i]) < o.stick_speed_mm_s ||
               (i > 0 && lt.velocity_mm_s[i] * lt.velocity_mm_s[i - 1] < 0.0);
   }
   lt.may_stick.assign(n, 0);

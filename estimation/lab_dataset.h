@@ -24,8 +24,9 @@ struct LabTrial {
   hw::Trial trial;
   std::vector<double> velocity_mm_s;
   std::vector<double> acceleration_mm_s2;
-  // True where the base comes to rest or reverses within the velocity window: the
-  // guidewire may be stuck and the friction force is only bounded, not determined.
+  // True where the base comes to rest or reverses within the velocity window, and within
+  // a window of the trial's first and last samples (where the centred difference is
+  // one-sided): the guidewire may be stuck and the friction force is only bounded.
   std::vector<std::uint8_t> may_stick;
   std::vector<std::size_t> fit_index;  // samples that enter the fit
 };

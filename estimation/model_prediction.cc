@@ -9,7 +9,10 @@ namespace {
 // Where the guidewire may be stuck (LabTrial::may_stick) static friction takes whatever
 // value balances the drive, anywhere within ±breakaway, and a kinematic model cannot say
 // which: the prediction is the measured force clamped to that band, so only a force
-// beyond breakaway counts as model error.
+// beyond breakaway counts as model error. "May" stick: the base may as well be sliding
+// at the estimated speed (a trial's first and last samples, a slow pass), where kinetic
+// friction can exceed breakaway (viscous friction), so the band is ±max(breakaway,
+// friction magnitude at the estimated speed).
 
 }  // namespace
 
@@ -27,9 +30,10 @@ void PredictTrial(const hw::TransmissionModel& model, const LabTrial& lt,
   const double breakaway = model.FrictionLevelN();
   for (std::size_t i = 0; i < n; ++i) {
     const double v = lt.velocity_mm_s[i];
-    const double force = lt.may_stick[i] != 0
-                             ? std::clamp(tr.force_n[i], -breakaway, breakaway)
-                             : std::copysign(model.FrictionMagnitudeN(std::abs(v)), v);
+    const double kinetic = model.FrictionMagnitudeN(std::abs(v));
+    const double band = std::max(breakaway, kinetic);
+    const double force = lt.may_stick[i] != 0 ? std::clamp(tr.force_n[i], -band, band)
+                                              : std::copysign(kinetic, v);
     out.force_n[i] = force;
     const double drive = model.DriveMm(tr.base_mm[i], force);
     if (i == 0) {

@@ -4,7 +4,8 @@
 // model's friction magnitude at the measured base speed, opposing the motion; where
 // the base stops or reverses the guidewire may be stuck and static friction can take
 // any value up to the breakaway level, so the prediction there is the measured force clamped to
-// ±breakaway (only a force beyond breakaway is a model error). The drive is the
+// ±breakaway (only a force beyond breakaway is a model error; where kinetic friction at the
+// estimated speed exceeds breakaway, the band is ±kinetic instead). The drive is the
 // base plus the model's offsets, the tip follows the deadzone from an initial contact
 // state, and the tip sensor applies the model's delay and gain plus a per-trial offset.
 // Per-trial nuisance: tip-sensor offset (mm) and initial contact state c ∈ [−1, 1]

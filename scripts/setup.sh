@@ -7,6 +7,7 @@ packages=(
   g++ cmake ninja-build
   libgtest-dev libgmock-dev libbenchmark-dev
   libeigen3-dev libceres-dev nlohmann-json3-dev libcli11-dev
+  chromium
 )
 
 missing=()

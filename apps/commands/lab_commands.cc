@@ -4,12 +4,16 @@
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 
 #include "apps/output.h"
 #include "estimation/diagnosis.h"
+#include "estimation/lab_report.h"
 #include "estimation/model_fit.h"
 #include "hw/effect_registry.h"
 
@@ -209,6 +213,74 @@ void AddCommon(CLI::App* cmd, LabFlags& f) {
   cmd->add_flag("--json", f.json, "Print JSON");
 }
 
+// ---- `lab report`: the error ladder, diagnosis and plots as one self-contained HTML page.
+
+struct ReportFlags {
+  LabFlags common;
+  std::string out;
+  int max_rounds = 4;
+  int plot_trials = 4;
+};
+
+// Writes `html` to `path` through a temporary file and a rename (no half-written report).
+void WriteReportFile(const std::string& path, const std::string& html) {
+  const std::filesystem::path target(path);
+  const std::filesystem::path tmp = target.string() + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error("lab report: cannot write " + tmp.string());
+    out << html;
+    out.close();
+    if (!out) throw std::runtime_error("lab report: error writing " + tmp.string());
+  }
+  std::filesystem::rename(tmp, target);
+}
+
+void RunReport(const ReportFlags& f) {
+  const estimation::LabDataset ds = Load(f.common);
+  const auto effects = hw::ParseModelSpec(f.common.model, hw::EffectRegistry::WithBuiltinEffects());
+  estimation::DiagnoseOptions o;
+  o.fit = Options();
+  const std::vector<estimation::LadderStep> ladder = estimation::ErrorLadder(effects, ds, o, f.max_rounds);
+  estimation::LabReportOptions ro;
+  ro.dataset_path = f.common.dataset;
+  ro.stride = f.common.stride;
+  ro.max_rounds = f.max_rounds;
+  ro.plot_trials = static_cast<std::size_t>(f.plot_trials);
+  o.fit.progress("report: writing " + f.out);
+  WriteReportFile(f.out, estimation::RenderLabReport(ds, ladder, ro));
+  std::vector<std::string> models;
+  for (const auto& step : ladder) models.push_back(hw::FormatModelSpec(step.model));
+  const bool adequate = ladder.back().diagnosis.adequate;
+  if (f.common.json) {
+    std::cout << nlohmann::json{{"report", f.out},
+                                {"ladder", models},
+                                {"final_model", models.back()},
+                                {"adequate", adequate},
+                                {"verdict", ladder.back().diagnosis.verdict}}
+                     .dump(2)
+              << "\n";
+    return;
+  }
+  std::cout << "wrote " << f.out << ": ladder";
+  for (std::size_t i = 0; i < models.size(); ++i) std::cout << (i == 0 ? " " : " -> ") << models[i];
+  std::cout << " (" << (adequate ? "adequate" : "not adequate") << ")\n";
+}
+
+void AddReportCommand(CLI::App* lab) {
+  auto flags = std::make_shared<ReportFlags>();
+  auto* report = lab->add_subcommand(
+      "report", "Error ladder, diagnosis, parameters and plots as one self-contained HTML page");
+  AddCommon(report, flags->common);
+  report->add_option("--out", flags->out, "HTML file to write")->required();
+  report->add_option("--max-rounds", flags->max_rounds, "Most effects the error ladder adds (default 4)")
+      ->check(CLI::Range(0, 20));
+  report->add_option("--plot-trials", flags->plot_trials,
+                     "Trials plotted: those with the largest tip residual under the model (default 4)")
+      ->check(CLI::Range(0, 100));
+  report->callback([flags] { RunReport(*flags); });
+}
+
 }  // namespace
 
 void AddLabCommands(CLI::App& app) {
@@ -225,6 +297,7 @@ void AddLabCommands(CLI::App& app) {
       "diagnose", "Refit the model plus each missing catalog effect; rank them on held-out trials");
   AddCommon(diagnose, *dflags);
   diagnose->callback([dflags] { RunDiagnose(*dflags); });
+  AddReportCommand(lab);
 }
 
 }  // namespace echoservo::apps

@@ -33,7 +33,7 @@ std::vector<std::string> TutorialCommands() {
   return commands;
 }
 
-std::string Run(const fs::path& dir, const std::string& args, int* rc) {
+std::string RunCommand(const fs::path& dir, const std::string& args, int* rc) {
   const std::string cmd = "cd '" + dir.string() + "' && " + ECHOSERVO_CLI + " " + args + " 2>/dev/null";
   FILE* pipe = ::popen(cmd.c_str(), "r");
   std::string out;
@@ -55,7 +55,7 @@ TEST(Tutorial, RunsEndToEndAndTellsTheTruth) {
   for (const std::string& c : commands) {
     const bool measures = c.rfind("lab compare", 0) == 0 || c.rfind("lab diagnose", 0) == 0;
     int rc = -1;
-    const std::string text = Run(dir, c + (measures ? " --json" : ""), &rc);
+    const std::string text = RunCommand(dir, c + (measures ? " --json" : ""), &rc);
     ASSERT_EQ(rc, 0) << "echoservo " << c;
     out.push_back(measures ? nlohmann::json::parse(text) : nlohmann::json{{"text", text}});
   }

@@ -1,0 +1,391 @@
+// End-to-end tests of `echoservo lab compare|diagnose`: the binary is run as a user
+// would run it on a dataset recorded with `echoservo sim record`, its JSON parsed, and
+// bad input checked for a failing exit and an error that names the file, the line where
+// there is one, and the problem; with --skip-bad the bad trial is skipped and listed.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <ostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace echoservo {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int rc = -1;
+  std::string out;
+  std::string err;
+};
+
+Result RunCli(const std::string& args) {
+  const auto err_path =
+      fs::temp_directory_path() / ("echoservo_lab_cli_err_" + std::to_string(::getpid()) + ".txt");
+  const std::string cmd = std::string(ECHOSERVO_CLI) + " " + args + " 2>" + err_path.string();
+  Result r;
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return r;
+  std::array<char, 4096> buf{};
+  std::size_t n = 0;
+  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
+  const int status = ::pclose(pipe);
+  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::ifstream err(err_path);
+  std::stringstream ss;
+  ss << err.rdbuf();
+  r.err = ss.str();
+  fs::remove(err_path);
+  return r;
+}
+
+// A folder unique to this process and test (parameterised names contain '/').
+class TempDir {
+ public:
+  TempDir() {
+    std::string name = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    std::replace(name.begin(), name.end(), '/', '_');
+    path_ = fs::temp_directory_path() /
+            ("echoservo_lab_cli_" + std::to_string(::getpid()) + "_" + name);
+    fs::remove_all(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const fs::path& path() const { return path_; }
+  std::string str() const { return path_.string(); }
+
+ private:
+  fs::path path_;
+};
+
+void Record(const TempDir& dir, const std::string& args) {
+  const Result r = RunCli("sim record --out " + dir.str() + " " + args);
+  ASSERT_EQ(r.rc, 0) << r.err;
+}
+
+bool Contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+// ---------------------------------------------------------------------- JSON output
+
+// 8 catheters × the 0.8 Hz sine, 2 s, with a hidden sensor delay.
+void RecordDelayed(const TempDir& dir) {
+  Record(dir, "--configs lab --trajectories sine:4:0.8 --duration 2 --effects seed+sensor_delay");
+}
+
+void ExpectGroups(const nlohmann::json& groups, const std::string& what,
+                  std::size_t total_samples) {
+  ASSERT_TRUE(groups.is_array()) << what;
+  ASSERT_FALSE(groups.empty()) << what;
+  std::size_t samples = 0;
+  double sample_share = 0.0, tip_share = 0.0;
+  for (const auto& g : groups) {
+    for (const char* key : {"group", "samples", "tip_rms_mm", "force_rms_n", "sample_share",
+                            "tip_share", "force_share"}) {
+      EXPECT_TRUE(g.contains(key)) << what << " lacks " << key << ": " << g.dump();
+    }
+    EXPECT_GE(g["tip_rms_mm"].get<double>(), 0.0);
+    samples += g["samples"].get<std::size_t>();
+    sample_share += g["sample_share"].get<double>();
+    tip_share += g["tip_share"].get<double>();
+  }
+  EXPECT_EQ(samples, total_samples) << what;  // every sample in exactly one group
+  EXPECT_NEAR(sample_share, 1.0, 1e-9) << what;
+  EXPECT_NEAR(tip_share, 1.0, 1e-9) << what;
+}
+
+TEST(LabCli, CompareJsonHasErrorsParametersAndBreakdown) {
+  TempDir dir;
+  RecordDelayed(dir);
+  const Result r = RunCli("lab compare " + dir.str() + " --model seed --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["model"], "seed");
+  // The seed model misses the delay: the tip error is well above the 0.03 mm noise.
+  EXPECT_GT(j["rms_mm"].get<double>(), 2.0 * j["noise"]["tip_mm"].get<double>());
+  EXPECT_GT(j["force_rms_n"].get<double>(), 0.0);
+  for (const char* p :
+       {"coulomb_friction.f0_n", "coulomb_friction.mu_tip", "viscous_friction.b_n_per_mm_s"}) {
+    ASSERT_TRUE(j["params"].contains(p)) << j["params"].dump();
+    EXPECT_TRUE(j["params"][p]["value"].is_number()) << p;
+    EXPECT_TRUE(j["params"][p]["sd"].is_number()) << p;  // identifiable: a number, not null
+    EXPECT_GT(j["params"][p]["sd"].get<double>(), 0.0) << p;
+    EXPECT_TRUE(j["params"][p]["unit"].is_string()) << p;
+  }
+  EXPECT_NEAR(j["params"]["coulomb_friction.f0_n"]["value"].get<double>(), 0.55, 0.05);
+  const std::size_t total = 8 * 2000;
+  for (const char* axis : {"phase", "speed", "gap", "bend", "tip_load", "trial"}) {
+    ASSERT_TRUE(j["breakdown"].contains(axis)) << axis;
+    ExpectGroups(j["breakdown"][axis], axis, total);
+  }
+  EXPECT_EQ(j["breakdown"]["trial"].size(), 8u);
+  EXPECT_EQ(j["breakdown"]["gap"].size(), 4u);  // the lab catheters' four gaps
+  EXPECT_EQ(j["trials"].size(), 8u);
+  EXPECT_TRUE(j["skipped"].empty());
+
+  // With the delay in the model the tip error drops to the noise.
+  const Result fixed = RunCli("lab compare " + dir.str() + " --model seed+sensor_delay --json");
+  ASSERT_EQ(fixed.rc, 0) << fixed.err;
+  const auto f = nlohmann::json::parse(fixed.out);
+  EXPECT_NEAR(f["rms_mm"].get<double>(), f["noise"]["tip_mm"].get<double>(),
+              0.1 * f["noise"]["tip_mm"].get<double>());
+  EXPECT_NEAR(f["params"]["sensor_delay.delay_s"]["value"].get<double>(), 0.005, 0.0005);
+}
+
+TEST(LabCli, DiagnoseJsonRanksTheMissingEffectFirst) {
+  TempDir dir;
+  RecordDelayed(dir);
+  const Result r = RunCli("lab diagnose " + dir.str() + " --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["model"], "seed");
+  EXPECT_TRUE(j["rms_mm"].is_number());
+  EXPECT_TRUE(j["force_rms_n"].is_number());
+  ASSERT_TRUE(j["adequate"].is_boolean());
+  EXPECT_FALSE(j["adequate"].get<bool>());
+  const auto& c = j["candidates"];
+  ASSERT_EQ(c.size(), 7u);
+  EXPECT_EQ(c[0]["effect"], "sensor_delay");
+  EXPECT_TRUE(c[0]["significant"].get<bool>());
+  EXPECT_LT(c[0]["rms_mm"].get<double>(), 0.5 * j["rms_mm"].get<double>());
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    for (const char* key :
+         {"effect", "rms_mm", "force_rms_n", "evidence", "significant", "score"}) {
+      EXPECT_TRUE(c[i].contains(key)) << key << " in " << c[i].dump();
+    }
+    EXPECT_FALSE(c[i]["evidence"].get<std::string>().empty());
+    // Best first: significant candidates before the others, each group by falling score.
+    if (i > 0) {
+      const bool sig_prev = c[i - 1]["significant"].get<bool>();
+      const bool sig = c[i]["significant"].get<bool>();
+      EXPECT_TRUE(sig_prev || !sig) << i;
+      if (sig_prev == sig) {
+        EXPECT_GE(c[i - 1]["score"].get<double>(), c[i]["score"].get<double>()) << i;
+      }
+    }
+  }
+  EXPECT_TRUE(Contains(c[0]["evidence"].get<std::string>(), "tip RMS")) << c[0]["evidence"];
+  EXPECT_TRUE(Contains(j["verdict"].get<std::string>(), "sensor_delay"));
+
+  // The text form names the missing effect and the next command.
+  const Result text = RunCli("lab diagnose " + dir.str());
+  ASSERT_EQ(text.rc, 0) << text.err;
+  EXPECT_TRUE(Contains(text.out, "MISSING")) << text.out;
+  EXPECT_TRUE(Contains(text.out, "--model seed+sensor_delay")) << text.out;
+
+  // With the delay in the model nothing is missing.
+  const Result adequate = RunCli("lab diagnose " + dir.str() + " --model seed+sensor_delay --json");
+  ASSERT_EQ(adequate.rc, 0) << adequate.err;
+  EXPECT_TRUE(nlohmann::json::parse(adequate.out)["adequate"].get<bool>()) << adequate.out;
+}
+
+// ---------------------------------------------------------------------- bad input
+
+std::vector<std::string> ReadLines(const fs::path& p) {
+  std::ifstream in(p);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+void WriteLines(const fs::path& p, const std::vector<std::string>& lines) {
+  std::ofstream out(p, std::ios::trunc);
+  for (const std::string& l : lines) out << l << "\n";
+}
+
+// Replaces field `column` (0-based) of CSV line `line` (1-based; the header is line 1).
+void SetField(const fs::path& csv, std::size_t line, std::size_t column, const std::string& value) {
+  std::vector<std::string> lines = ReadLines(csv);
+  std::vector<std::string> fields;
+  std::stringstream ss(lines.at(line - 1));
+  for (std::string f; std::getline(ss, f, ',');) fields.push_back(f);
+  fields.at(column) = value;
+  std::string joined;
+  for (std::size_t i = 0; i < fields.size(); ++i) {
+    if (i > 0) joined.push_back(',');
+    joined.append(fields[i]);
+  }
+  lines[line - 1] = joined;
+  WriteLines(csv, lines);
+}
+
+struct BadInput {
+  const char* name;
+  std::function<void(const fs::path& csv)> corrupt;  // the CSV of trial "zz_bad"
+  std::vector<std::string> expected;                 // in stderr
+};
+
+void PrintTo(const BadInput& b, std::ostream* os) { *os << b.name; }
+
+class LabCliBadInput : public ::testing::TestWithParam<BadInput> {
+ protected:
+  // Two good trials (the seed catheter, sine and mitral, 1 s) and a copy of the first,
+  // "zz_bad", corrupted.
+  void SetUp() override {
+    Record(dir_, "--configs seed --trajectories sine,mitral --duration 1");
+    fs::path first;
+    for (const auto& e : fs::directory_iterator(dir_.path())) {
+      if (e.path().extension() == ".csv" && (first.empty() || e.path() < first)) first = e.path();
+    }
+    ASSERT_FALSE(first.empty());
+    fs::copy_file(first, dir_.path() / "zz_bad.csv");
+    fs::copy_file(fs::path(first).replace_extension(".json"), dir_.path() / "zz_bad.json");
+    GetParam().corrupt(dir_.path() / "zz_bad.csv");
+  }
+  TempDir dir_;
+};
+
+TEST_P(LabCliBadInput, FailsNamingTheFileAndTheProblem) {
+  for (const char* cmd : {"compare", "diagnose"}) {
+    const Result r = RunCli(std::string("lab ") + cmd + " " + dir_.str() + " --json");
+    EXPECT_NE(r.rc, 0) << cmd;
+    EXPECT_TRUE(r.out.empty()) << cmd << ": " << r.out;
+    EXPECT_TRUE(Contains(r.err, "zz_bad")) << cmd << ": " << r.err;
+    for (const std::string& part : GetParam().expected)
+      EXPECT_TRUE(Contains(r.err, part)) << part << " in " << r.err;
+  }
+}
+
+TEST_P(LabCliBadInput, SkipBadListsTheFileAndGoesOn) {
+  for (const char* cmd : {"compare", "diagnose"}) {
+    const Result r = RunCli(std::string("lab ") + cmd + " " + dir_.str() + " --json --skip-bad");
+    ASSERT_EQ(r.rc, 0) << cmd << ": " << r.err;
+    EXPECT_TRUE(Contains(r.err, "skipped")) << r.err;
+    EXPECT_TRUE(Contains(r.err, "zz_bad")) << r.err;
+    for (const std::string& part : GetParam().expected)
+      EXPECT_TRUE(Contains(r.err, part)) << part << " in " << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    ASSERT_EQ(j["skipped"].size(), 1u);
+    EXPECT_TRUE(Contains(j["skipped"][0].get<std::string>(), "zz_bad")) << j["skipped"].dump();
+    if (std::string(cmd) == "compare") {
+      EXPECT_EQ(j["trials"].size(), 2u);
+    } else {
+      EXPECT_EQ(j["candidates"].size(), 7u);
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Kinds, LabCliBadInput,
+    ::testing::Values(
+        BadInput{"MissingColumn",
+                 [](const fs::path& csv) {
+                   std::vector<std::string> lines = ReadLines(csv);
+                   for (std::string& l : lines) l = l.substr(0, l.rfind(','));  // drop `force`
+                   WriteLines(csv, lines);
+                 },
+                 {"zz_bad.csv", "line 1", "missing required column 'force'"}},
+        BadInput{"NonNumericCell",
+                 [](const fs::path& csv) { SetField(csv, 5, 3, "1.2.3"); },
+                 {"zz_bad.csv", "line 5", "column 'tip'", "not a number"}},
+        BadInput{"NaN",
+                 [](const fs::path& csv) { SetField(csv, 9, 2, "NaN"); },
+                 {"zz_bad.csv", "line 9", "column 'base'", "NaN"}},
+        BadInput{"NonMonotonicTime",
+                 [](const fs::path& csv) { SetField(csv, 30, 0, "0.01"); },
+                 {"zz_bad.csv", "line 30", "strictly increasing"}},
+        BadInput{"MissingJsonSidecar",
+                 [](const fs::path& csv) { fs::remove(fs::path(csv).replace_extension(".json")); },
+                 {"zz_bad.json", "JSON"}},
+        BadInput{"MalformedJson",
+                 [](const fs::path& csv) {
+                   std::ofstream(fs::path(csv).replace_extension(".json"), std::ios::trunc)
+                       << "{\"bends\": [";
+                 },
+                 {"zz_bad.json", "JSON parse error"}}),
+    [](const ::testing::TestParamInfo<BadInput>& info) { return std::string(info.param.name); });
+
+TEST(LabCli, SkipBadListsEveryBadFile) {
+  // Every kind of bad trial at once, next to two good ones: each is listed on stderr
+  // and in the JSON, and the good trials are fitted.
+  TempDir dir;
+  Record(dir, "--configs seed --trajectories sine,mitral --duration 1");
+  fs::path first;
+  for (const auto& e : fs::directory_iterator(dir.path())) {
+    if (e.path().extension() == ".csv" && (first.empty() || e.path() < first)) first = e.path();
+  }
+  ASSERT_FALSE(first.empty());
+  const std::vector<BadInput> kinds = {
+      {"bad_cell", [](const fs::path& csv) { SetField(csv, 5, 3, "x"); }, {}},
+      {"bad_nan", [](const fs::path& csv) { SetField(csv, 5, 4, "nan"); }, {}},
+      {"bad_time", [](const fs::path& csv) { SetField(csv, 6, 0, "0"); }, {}},
+      {"bad_nojson",
+       [](const fs::path& csv) { fs::remove(fs::path(csv).replace_extension(".json")); },
+       {}},
+      {"bad_json",
+       [](const fs::path& csv) {
+         std::ofstream(fs::path(csv).replace_extension(".json")) << "[1,";
+       },
+       {}}};
+  for (const BadInput& k : kinds) {
+    fs::copy_file(first, dir.path() / (std::string(k.name) + ".csv"));
+    fs::copy_file(fs::path(first).replace_extension(".json"),
+                  dir.path() / (std::string(k.name) + ".json"));
+    k.corrupt(dir.path() / (std::string(k.name) + ".csv"));
+  }
+  const Result r = RunCli("lab compare " + dir.str() + " --json --skip-bad");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["trials"].size(), 2u);
+  ASSERT_EQ(j["skipped"].size(), kinds.size()) << j["skipped"].dump();
+  for (const BadInput& k : kinds) {
+    EXPECT_TRUE(Contains(r.err, "skipped")) << r.err;
+    EXPECT_TRUE(Contains(r.err, k.name)) << k.name << " in " << r.err;
+    EXPECT_TRUE(Contains(j["skipped"].dump(), k.name)) << k.name;
+  }
+  // Without --skip-bad the first bad file (in name order) stops the command.
+  const Result strict = RunCli("lab compare " + dir.str() + " --json");
+  EXPECT_NE(strict.rc, 0);
+  EXPECT_TRUE(Contains(strict.err, "bad_")) << strict.err;
+}
+
+TEST(LabCli, UnknownEffectInTheModelIsNamed) {
+  TempDir dir;
+  Record(dir, "--configs seed --trajectories sine --duration 1");
+  for (const char* cmd : {"compare", "diagnose"}) {
+    const Result r =
+        RunCli(std::string("lab ") + cmd + " " + dir.str() + " --model seed+warp_drive --json");
+    EXPECT_NE(r.rc, 0) << cmd;
+    EXPECT_TRUE(Contains(r.err, "warp_drive")) << r.err;
+    EXPECT_TRUE(Contains(r.err, "unknown effect")) << r.err;
+  }
+}
+
+TEST(LabCli, MissingOrEmptyDatasetFolderIsNamed) {
+  TempDir dir;
+  const Result missing = RunCli("lab compare " + dir.str() + " --json");
+  EXPECT_NE(missing.rc, 0);
+  EXPECT_TRUE(Contains(missing.err, dir.str())) << missing.err;
+  EXPECT_TRUE(Contains(missing.err, "not found")) << missing.err;
+  fs::create_directories(dir.path());
+  const Result empty = RunCli("lab diagnose " + dir.str() + " --skip-bad");
+  EXPECT_NE(empty.rc, 0);
+  EXPECT_TRUE(Contains(empty.err, dir.str())) << empty.err;
+}
+
+TEST(LabCli, AllBadFailsEvenWithSkipBad) {
+  TempDir dir;
+  Record(dir, "--configs seed --trajectories sine --duration 1");
+  for (const auto& e : fs::directory_iterator(dir.path())) {
+    if (e.path().extension() == ".csv") SetField(e.path(), 3, 1, "oops");
+  }
+  const Result r = RunCli("lab compare " + dir.str() + " --skip-bad --json");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_TRUE(Contains(r.err, "no valid trial")) << r.err;
+  EXPECT_TRUE(Contains(r.err, "skipped")) << r.err;
+}
+
+}  // namespace
+}  // namespace echoservo
