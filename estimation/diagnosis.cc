@@ -197,18 +197,19 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds, 
   for (Candidate& c : d.candidates) {
     const double tip_drop = d.base_cv.tip_mse - c.cv.tip_mse;
     const double force_drop = d.base_cv.force_mse - c.cv.force_mse;
-    c.tip_explained = tip_excess > 0.0 ? tip_drop / tip_excess : 0.0;
-    c.force_explained = force_excess > 0.0 ? force_drop / force_excess : 0.0;
+    // A fraction of an excess that is (nearly) nothing is noise over noise: undefined.
+    c.tip_explained = tip_excess >= o.min_excess ? tip_drop / tip_excess : std::nan("");
+    c.force_explained = force_excess >= o.min_excess ? force_drop / force_excess : std::nan("");
     c.score = tip_drop + force_drop;
-    const bool tip_ok = tip_excess >= o.min_excess && c.tip_explained >= o.min_explained &&
+    const bool tip_ok = std::isfinite(c.tip_explained) && c.tip_explained >= o.min_explained &&
                         force_drop > -std::max(0.1 * force_excess, 0.5);
-    const bool force_ok = force_excess >= o.min_excess && c.force_explained >= o.min_explained &&
+    const bool force_ok = std::isfinite(c.force_explained) && c.force_explained >= o.min_explained &&
                           tip_drop > -std::max(0.1 * tip_excess, 0.5);
     c.significant = tip_ok || force_ok;
-    c.channel = (tip_excess >= o.min_excess ? c.tip_explained : 0.0) >=
-                        (force_excess >= o.min_excess ? c.force_explained : 0.0)
-                    ? "tip"
-                    : "force";
+    const double tip_part = std::isfinite(c.tip_explained) ? c.tip_explained : -1e9;
+    const double force_part = std::isfinite(c.force_explained) ? c.force_explained : -1e9;
+    c.channel = tip_part == force_part ? (tip_drop >= force_drop ? "tip" : "force")
+                                       : (tip_part > force_part ? "tip" : "force");
   }
   std::stable_sort(d.candidates.begin(), d.candidates.end(), [](const Candidate& a, const Candidate& b) {
     if (a.significant != b.significant) return a.significant;
@@ -221,9 +222,11 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds, 
     const double after = tip ? c.fit.overall.tip_rms_mm : c.fit.overall.force_rms_n;
     std::string text = std::string(tip ? "tip" : "force") + " RMS " + Num(before, tip ? 4 : 4) +
                        (tip ? " mm" : " N") + " -> " + Num(after, 4) + (tip ? " mm" : " N") + " (" +
-                       Percent(before > 0.0 ? (after - before) / before : 0.0) + "); explains " +
-                       Percent(tip ? c.tip_explained : c.force_explained) + " of the held-out excess " +
-                       (tip ? "tip" : "force") + " residual";
+                       Percent(before > 0.0 ? (after - before) / before : 0.0) + ")";
+    const double explained = tip ? c.tip_explained : c.force_explained;
+    text += std::isfinite(explained) ? "; explains " + Percent(explained) + " of the held-out excess " +
+                                           (tip ? "tip" : "force") + " residual"
+                                     : "; the model leaves no excess over the noise in this channel";
     if (c.significant) {
       for (const std::string& s : Concentration(d, ds, tip)) text += "; " + s;
       text += "; expected signature: " + std::string(catalog.Create(c.effect)->signature());

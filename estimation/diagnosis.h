@@ -37,7 +37,9 @@ struct Candidate {
   std::string effect;
   FitResult fit;  // SPEC+effect on all trials
   CrossValidation cv;
-  double tip_explained = 0.0;    // fraction of the model's held-out tip excess removed
+  // Fraction of the model's held-out tip excess removed; NaN when the model leaves less
+  // than `min_excess` in that channel (nothing to explain).
+  double tip_explained = 0.0;
   double force_explained = 0.0;
   double score = 0.0;            // held-out residual removed, noise variances
   bool significant = false;

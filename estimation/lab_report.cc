@@ -50,6 +50,7 @@ std::string Breakable(std::string_view text) {
 }
 
 std::string Percent(double fraction) {
+  if (!std::isfinite(fraction)) return "–";  // nothing to explain in that channel
   const double p = std::round(100.0 * fraction);
   return Fix(p == 0.0 ? 0.0 : p, 0) + "%";  // no "-0%"
 }

@@ -60,6 +60,14 @@ estimation::FitOptions Options() {
   return o;
 }
 
+nlohmann::json NullIfNan(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+std::string PercentOrDash(double fraction) {
+  if (!std::isfinite(fraction)) return "-";
+  const double pct = std::round(100.0 * fraction);
+  return Fixed(pct == 0.0 ? 0.0 : pct, 0) + "%";  // never "-0%"
+}
+
 nlohmann::json ParamsJson(const estimation::FitResult& r) {
   nlohmann::json p = nlohmann::json::object();
   for (const auto& e : r.estimates) {
@@ -153,8 +161,8 @@ nlohmann::json DiagnosisJson(const estimation::Diagnosis& d) {
                           {"force_rms_n", c.fit.overall.force_rms_n},
                           {"cv_tip_mse_noise", c.cv.tip_mse},
                           {"cv_force_mse_noise", c.cv.force_mse},
-                          {"tip_explained", c.tip_explained},
-                          {"force_explained", c.force_explained},
+                          {"tip_explained", NullIfNan(c.tip_explained)},
+                          {"force_explained", NullIfNan(c.force_explained)},
                           {"score", c.score},
                           {"significant", c.significant},
                           {"channel", c.channel},
@@ -194,8 +202,8 @@ void RunDiagnose(const LabFlags& f) {
   int rank = 1;
   for (const auto& c : d.candidates) {
     t.AddRow({std::to_string(rank++), "+" + c.effect, Fixed(c.fit.overall.tip_rms_mm, 4),
-              Fixed(c.fit.overall.force_rms_n, 4), Fixed(100 * c.tip_explained, 0) + "%",
-              Fixed(100 * c.force_explained, 0) + "%", c.significant ? "yes" : "no"});
+              Fixed(c.fit.overall.force_rms_n, 4), PercentOrDash(c.tip_explained),
+              PercentOrDash(c.force_explained), c.significant ? "yes" : "no"});
   }
   t.Print(std::cout);
   std::cout << "\n" << (d.adequate ? "ADEQUATE" : "MISSING") << ": " << d.verdict << "\n";
