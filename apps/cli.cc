@@ -1,5 +1,6 @@
 #include "apps/cli.h"
 
+#include "apps/commands/imaging_commands.h"
 #include "apps/commands/lab_commands.h"
 
 #include <CLI/CLI.hpp>
@@ -15,6 +16,9 @@ int RunCli(int argc, char** argv) {
   app.set_version_flag("--version", "echoservo 0.1.0");
   AddSimCommands(app);
   AddLabCommands(app);
+  AddInfoCommand(app);
+  AddRenderCommand(app);
+  AddStreamCommands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -8,6 +8,14 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libeigen3-dev libceres-dev nlohmann-json3-dev libcli11-dev
   chromium
+  libvtk9-dev
+  libembree-dev
+  libopenigtlink-dev
+  libopencv-dev
+  libtbb-dev
+  zlib1g-dev
+  xvfb
+  xauth
 )
 
 missing=()

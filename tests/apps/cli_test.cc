@@ -1,62 +1,24 @@
 // End-to-end tests of the echoservo command line: the binary is run as a user would
 // run it, its JSON parsed, and bad input checked for a clear error and a failing exit.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <array>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
-#include <sstream>
 #include <string>
+#include <vector>
 
 #include "hw/effect_registry.h"
 #include "hw/trial.h"
+#include "tests/test_util/cli_runner.h"
+#include "tests/test_util/temp_dir.h"
 
 namespace echoservo {
 namespace {
 
-struct Result {
-  int rc = -1;
-  std::string out;
-  std::string err;
-};
-
-Result RunCli(const std::string& args) {
-  const auto err_path = std::filesystem::temp_directory_path() /
-                        ("echoservo_cli_err_" + std::to_string(::getpid()) + ".txt");
-  const std::string cmd = std::string(ECHOSERVO_CLI) + " " + args + " 2>" + err_path.string();
-  Result r;
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream err(err_path);
-  std::stringstream ss;
-  ss << err.rdbuf();
-  r.err = ss.str();
-  std::filesystem::remove(err_path);
-  return r;
-}
-
-class TempDir {
- public:
-  TempDir()
-      : path_(std::filesystem::temp_directory_path() /
-              ("echoservo_cli_" + std::to_string(::getpid()) + "_" +
-               ::testing::UnitTest::GetInstance()->current_test_info()->name())) {
-    std::filesystem::remove_all(path_);
-  }
-  ~TempDir() { std::filesystem::remove_all(path_); }
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  std::filesystem::path path_;
-};
+using Result = echoservo::testing::RunResult;
+using echoservo::testing::RunCli;
+using echoservo::testing::TempDir;
 
 TEST(Cli, HelpListsSubcommands) {
   const Result r = RunCli("--help");
@@ -139,7 +101,7 @@ TEST(Cli, EffectsListsTheCatalog) {
 }
 
 TEST(Cli, RecordWritesAReadableDataset) {
-  TempDir dir;
+  TempDir dir("cli");
   const Result r = RunCli("sim record --out " + dir.path().string() +
                           " --configs seed --trajectories sine,mitral --tip-loads 0,1.5 "
                           "--duration 1 --effects seed+sensor_delay --json");
@@ -158,7 +120,7 @@ TEST(Cli, RecordWritesAReadableDataset) {
 }
 
 TEST(Cli, CatheterFileIsStrict) {
-  TempDir dir;
+  TempDir dir("cli");
   std::filesystem::create_directories(dir.path());
   const auto good = dir.path() / "cath.json";
   std::ofstream(good) << R"({"sheath_id_mm": 2.38, "guidewire_od_mm": 1.50,

@@ -3,71 +3,30 @@
 // bad input checked for a failing exit and an error that names the file, the line where
 // there is one, and the problem; with --skip-bad the bad trial is skipped and listed.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <algorithm>
-#include <array>
-#include <cstdio>
 #include <filesystem>
-#include <fstream>
-#include <functional>
 #include <nlohmann/json.hpp>
-#include <ostream>
-#include <sstream>
 #include <string>
 #include <vector>
+
+#include "tests/test_util/cli_runner.h"
+#include "tests/test_util/temp_dir.h"
+#include "tests/test_util/trial_files.h"
 
 namespace echoservo {
 namespace {
 
 namespace fs = std::filesystem;
+using Result = echoservo::testing::RunResult;
+using echoservo::testing::BadCell;
+using echoservo::testing::BadTrial;
+using echoservo::testing::MalformedJsonSidecar;
+using echoservo::testing::MissingJsonSidecar;
+using echoservo::testing::MissingLastColumn;
+using echoservo::testing::RunCli;
+using echoservo::testing::TempDir;
 
-struct Result {
-  int rc = -1;
-  std::string out;
-  std::string err;
-};
-
-Result RunCli(const std::string& args) {
-  const auto err_path =
-      fs::temp_directory_path() / ("echoservo_lab_cli_err_" + std::to_string(::getpid()) + ".txt");
-  const std::string cmd = std::string(ECHOSERVO_CLI) + " " + args + " 2>" + err_path.string();
-  Result r;
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::ifstream err(err_path);
-  std::stringstream ss;
-  ss << err.rdbuf();
-  r.err = ss.str();
-  fs::remove(err_path);
-  return r;
-}
-
-// A folder unique to this process and test (parameterised names contain '/').
-class TempDir {
- public:
-  TempDir() {
-    std::string name = ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    std::replace(name.begin(), name.end(), '/', '_');
-    path_ = fs::temp_directory_path() /
-            ("echoservo_lab_cli_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const fs::path& path() const { return path_; }
-  std::string str() const { return path_.string(); }
-
- private:
-  fs::path path_;
-};
+constexpr const char* kTag = "lab_cli";
 
 void Record(const TempDir& dir, const std::string& args) {
   const Result r = RunCli("sim record --out " + dir.str() + " " + args);
@@ -107,7 +66,7 @@ void ExpectGroups(const nlohmann::json& groups, const std::string& what,
 }
 
 TEST(LabCli, CompareJsonHasErrorsParametersAndBreakdown) {
-  TempDir dir;
+  TempDir dir(kTag);
   RecordDelayed(dir);
   const Result r = RunCli("lab compare " + dir.str() + " --model seed --json");
   ASSERT_EQ(r.rc, 0) << r.err;
@@ -145,7 +104,7 @@ TEST(LabCli, CompareJsonHasErrorsParametersAndBreakdown) {
 }
 
 TEST(LabCli, DiagnoseJsonRanksTheMissingEffectFirst) {
-  TempDir dir;
+  TempDir dir(kTag);
   RecordDelayed(dir);
   const Result r = RunCli("lab diagnose " + dir.str() + " --json");
   ASSERT_EQ(r.rc, 0) << r.err;
@@ -193,58 +152,17 @@ TEST(LabCli, DiagnoseJsonRanksTheMissingEffectFirst) {
 
 // ---------------------------------------------------------------------- bad input
 
-std::vector<std::string> ReadLines(const fs::path& p) {
-  std::ifstream in(p);
-  std::vector<std::string> lines;
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
-  return lines;
-}
-
-void WriteLines(const fs::path& p, const std::vector<std::string>& lines) {
-  std::ofstream out(p, std::ios::trunc);
-  for (const std::string& l : lines) out << l << "\n";
-}
-
-// Replaces field `column` (0-based) of CSV line `line` (1-based; the header is line 1).
-void SetField(const fs::path& csv, std::size_t line, std::size_t column, const std::string& value) {
-  std::vector<std::string> lines = ReadLines(csv);
-  std::vector<std::string> fields;
-  std::stringstream ss(lines.at(line - 1));
-  for (std::string f; std::getline(ss, f, ',');) fields.push_back(f);
-  fields.at(column) = value;
-  std::string joined;
-  for (std::size_t i = 0; i < fields.size(); ++i) {
-    if (i > 0) joined.push_back(',');
-    joined.append(fields[i]);
-  }
-  lines[line - 1] = joined;
-  WriteLines(csv, lines);
-}
-
-struct BadInput {
-  const char* name;
-  std::function<void(const fs::path& csv)> corrupt;  // the CSV of trial "zz_bad"
-  std::vector<std::string> expected;                 // in stderr
-};
-
-void PrintTo(const BadInput& b, std::ostream* os) { *os << b.name; }
-
-class LabCliBadInput : public ::testing::TestWithParam<BadInput> {
+class LabCliBadInput : public ::testing::TestWithParam<BadTrial> {
  protected:
   // Two good trials (the seed catheter, sine and mitral, 1 s) and a copy of the first,
   // "zz_bad", corrupted.
   void SetUp() override {
     Record(dir_, "--configs seed --trajectories sine,mitral --duration 1");
-    fs::path first;
-    for (const auto& e : fs::directory_iterator(dir_.path())) {
-      if (e.path().extension() == ".csv" && (first.empty() || e.path() < first)) first = e.path();
-    }
+    const fs::path first = echoservo::testing::FirstTrialCsv(dir_.path());
     ASSERT_FALSE(first.empty());
-    fs::copy_file(first, dir_.path() / "zz_bad.csv");
-    fs::copy_file(fs::path(first).replace_extension(".json"), dir_.path() / "zz_bad.json");
-    GetParam().corrupt(dir_.path() / "zz_bad.csv");
+    GetParam().corrupt(echoservo::testing::CopyTrial(first, dir_.path(), "zz_bad"));
   }
-  TempDir dir_;
+  TempDir dir_{kTag};
 };
 
 TEST_P(LabCliBadInput, FailsNamingTheFileAndTheProblem) {
@@ -280,67 +198,42 @@ TEST_P(LabCliBadInput, SkipBadListsTheFileAndGoesOn) {
 INSTANTIATE_TEST_SUITE_P(
     Kinds, LabCliBadInput,
     ::testing::Values(
-        BadInput{"MissingColumn",
-                 [](const fs::path& csv) {
-                   std::vector<std::string> lines = ReadLines(csv);
-                   for (std::string& l : lines) l = l.substr(0, l.rfind(','));  // drop `force`
-                   WriteLines(csv, lines);
-                 },
+        BadTrial{"MissingColumn",
+                 MissingLastColumn(),  // drops `force`
                  {"zz_bad.csv", "line 1", "missing required column 'force'"}},
-        BadInput{"NonNumericCell",
-                 [](const fs::path& csv) { SetField(csv, 5, 3, "1.2.3"); },
+        BadTrial{"NonNumericCell",
+                 BadCell(5, 3, "1.2.3"),
                  {"zz_bad.csv", "line 5", "column 'tip'", "not a number"}},
-        BadInput{"NaN",
-                 [](const fs::path& csv) { SetField(csv, 9, 2, "NaN"); },
-                 {"zz_bad.csv", "line 9", "column 'base'", "NaN"}},
-        BadInput{"NonMonotonicTime",
-                 [](const fs::path& csv) { SetField(csv, 30, 0, "0.01"); },
+        BadTrial{"NaN", BadCell(9, 2, "NaN"), {"zz_bad.csv", "line 9", "column 'base'", "NaN"}},
+        BadTrial{"NonMonotonicTime",
+                 BadCell(30, 0, "0.01"),
                  {"zz_bad.csv", "line 30", "strictly increasing"}},
-        BadInput{"MissingJsonSidecar",
-                 [](const fs::path& csv) { fs::remove(fs::path(csv).replace_extension(".json")); },
-                 {"zz_bad.json", "JSON"}},
-        BadInput{"MalformedJson",
-                 [](const fs::path& csv) {
-                   std::ofstream(fs::path(csv).replace_extension(".json"), std::ios::trunc)
-                       << "{\"bends\": [";
-                 },
+        BadTrial{"MissingJsonSidecar", MissingJsonSidecar(), {"zz_bad.json", "JSON"}},
+        BadTrial{"MalformedJson",
+                 MalformedJsonSidecar("{\"bends\": ["),
                  {"zz_bad.json", "JSON parse error"}}),
-    [](const ::testing::TestParamInfo<BadInput>& info) { return std::string(info.param.name); });
+    echoservo::testing::BadTrialName);
 
 TEST(LabCli, SkipBadListsEveryBadFile) {
   // Every kind of bad trial at once, next to two good ones: each is listed on stderr
   // and in the JSON, and the good trials are fitted.
-  TempDir dir;
+  TempDir dir(kTag);
   Record(dir, "--configs seed --trajectories sine,mitral --duration 1");
-  fs::path first;
-  for (const auto& e : fs::directory_iterator(dir.path())) {
-    if (e.path().extension() == ".csv" && (first.empty() || e.path() < first)) first = e.path();
-  }
+  const fs::path first = echoservo::testing::FirstTrialCsv(dir.path());
   ASSERT_FALSE(first.empty());
-  const std::vector<BadInput> kinds = {
-      {"bad_cell", [](const fs::path& csv) { SetField(csv, 5, 3, "x"); }, {}},
-      {"bad_nan", [](const fs::path& csv) { SetField(csv, 5, 4, "nan"); }, {}},
-      {"bad_time", [](const fs::path& csv) { SetField(csv, 6, 0, "0"); }, {}},
-      {"bad_nojson",
-       [](const fs::path& csv) { fs::remove(fs::path(csv).replace_extension(".json")); },
-       {}},
-      {"bad_json",
-       [](const fs::path& csv) {
-         std::ofstream(fs::path(csv).replace_extension(".json")) << "[1,";
-       },
-       {}}};
-  for (const BadInput& k : kinds) {
-    fs::copy_file(first, dir.path() / (std::string(k.name) + ".csv"));
-    fs::copy_file(fs::path(first).replace_extension(".json"),
-                  dir.path() / (std::string(k.name) + ".json"));
-    k.corrupt(dir.path() / (std::string(k.name) + ".csv"));
-  }
+  const std::vector<BadTrial> kinds = {{"bad_cell", BadCell(5, 3, "x"), {}},
+                                       {"bad_nan", BadCell(5, 4, "nan"), {}},
+                                       {"bad_time", BadCell(6, 0, "0"), {}},
+                                       {"bad_nojson", MissingJsonSidecar(), {}},
+                                       {"bad_json", MalformedJsonSidecar("[1,"), {}}};
+  for (const BadTrial& k : kinds)
+    k.corrupt(echoservo::testing::CopyTrial(first, dir.path(), k.name));
   const Result r = RunCli("lab compare " + dir.str() + " --json --skip-bad");
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["trials"].size(), 2u);
   ASSERT_EQ(j["skipped"].size(), kinds.size()) << j["skipped"].dump();
-  for (const BadInput& k : kinds) {
+  for (const BadTrial& k : kinds) {
     EXPECT_TRUE(Contains(r.err, "skipped")) << r.err;
     EXPECT_TRUE(Contains(r.err, k.name)) << k.name << " in " << r.err;
     EXPECT_TRUE(Contains(j["skipped"].dump(), k.name)) << k.name;
@@ -352,7 +245,7 @@ TEST(LabCli, SkipBadListsEveryBadFile) {
 }
 
 TEST(LabCli, UnknownEffectInTheModelIsNamed) {
-  TempDir dir;
+  TempDir dir(kTag);
   Record(dir, "--configs seed --trajectories sine --duration 1");
   for (const char* cmd : {"compare", "diagnose"}) {
     const Result r =
@@ -364,7 +257,7 @@ TEST(LabCli, UnknownEffectInTheModelIsNamed) {
 }
 
 TEST(LabCli, MissingOrEmptyDatasetFolderIsNamed) {
-  TempDir dir;
+  TempDir dir(kTag);
   const Result missing = RunCli("lab compare " + dir.str() + " --json");
   EXPECT_NE(missing.rc, 0);
   EXPECT_TRUE(Contains(missing.err, dir.str())) << missing.err;
@@ -376,10 +269,10 @@ TEST(LabCli, MissingOrEmptyDatasetFolderIsNamed) {
 }
 
 TEST(LabCli, AllBadFailsEvenWithSkipBad) {
-  TempDir dir;
+  TempDir dir(kTag);
   Record(dir, "--configs seed --trajectories sine --duration 1");
   for (const auto& e : fs::directory_iterator(dir.path())) {
-    if (e.path().extension() == ".csv") SetField(e.path(), 3, 1, "oops");
+    if (e.path().extension() == ".csv") echoservo::testing::SetCsvField(e.path(), 3, 1, "oops");
   }
   const Result r = RunCli("lab compare " + dir.str() + " --skip-bad --json");
   EXPECT_NE(r.rc, 0);

@@ -6,12 +6,9 @@
 // error or console message. Chromium is required (scripts/setup.sh installs it): when it
 // is not on PATH the browser tests FAIL, they do not skip.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <array>
-#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -23,50 +20,18 @@
 
 #include "estimation/svg_plot.h"
 #include "hw/effect_registry.h"
+#include "tests/test_util/cli_runner.h"
 
 namespace echoservo {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Result {
-  int rc = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// Single-quotes `s` for /bin/sh.
-std::string Quote(const std::string& s) {
-  std::string out = "'";
-  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return out + "'";
-}
-
-// Runs a shell command line: stdout captured, stderr through a temporary file.
-Result RunShell(const std::string& command) {
-  const fs::path err_path =
-      fs::temp_directory_path() / ("echoservo_lab_report_err_" + std::to_string(::getpid()));
-  Result r;
-  FILE* pipe = ::popen((command + " 2>" + Quote(err_path.string())).c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.err = ReadFile(err_path);
-  fs::remove(err_path);
-  return r;
-}
-
-Result RunCli(const std::string& args) { return RunShell(std::string(ECHOSERVO_CLI) + " " + args); }
+using Result = echoservo::testing::RunResult;
+using echoservo::testing::ReadFile;
+using echoservo::testing::RunCli;
+using echoservo::testing::RunShell;
+using echoservo::testing::ShellQuote;
 
 std::size_t Count(const std::string& text, const std::string& what) {
   std::size_t n = 0;
@@ -101,13 +66,13 @@ Result RunChromium(const fs::path& chromium, const fs::path& html, const fs::pat
   fs::remove_all(profile);
   fs::create_directories(profile);
   const std::string cmd =
-      "timeout 120 " + Quote(chromium.string()) +
+      "timeout 120 " + ShellQuote(chromium.string()) +
       " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run"
       " --disable-background-networking --disable-component-update --disable-sync"
       " --user-data-dir=" +
-      Quote(profile.string()) + " " + mode +
+      ShellQuote(profile.string()) + " " + mode +
       " --window-size=1280,2000 --enable-logging=stderr --v=0 " +
-      Quote("file://" + fs::absolute(html).string());
+      ShellQuote("file://" + fs::absolute(html).string());
   Result r = RunShell(cmd);
   fs::remove_all(profile);
   return r;
@@ -169,7 +134,7 @@ class LabReport : public ::testing::Test {
     fs::create_directories(page_->work);
     page_->dataset = page_->work / "bench & <runs>";
     page_->record = RunCli(
-        "sim record --out " + Quote(page_->dataset.string()) +
+        "sim record --out " + ShellQuote(page_->dataset.string()) +
         " --configs lab --trajectories sine:4:0.8 --duration 3 --effects seed+capstan_friction"
         " --seed 7");
     if (page_->record.rc != 0) return;
@@ -186,8 +151,9 @@ class LabReport : public ::testing::Test {
       fs::rename(json, page_->dataset / (std::string(kOddTrialName) + ".json"));
     }
     page_->html_path = page_->work / "report.html";
-    page_->report = RunCli("lab report " + Quote(page_->dataset.string()) + " --model seed --out " +
-                           Quote(page_->html_path.string()) + " --max-rounds 2 --json");
+    page_->report =
+        RunCli("lab report " + ShellQuote(page_->dataset.string()) + " --model seed --out " +
+               ShellQuote(page_->html_path.string()) + " --max-rounds 2 --json");
     page_->html = ReadFile(page_->html_path);
   }
   static void TearDownTestSuite() {
@@ -325,8 +291,8 @@ TEST_F(LabReport, RendersInHeadlessChromiumWithoutScriptErrors) {
   const fs::path chromium = FindOnPath("chromium");
   ASSERT_FALSE(chromium.empty()) << kNoChromium;
   const fs::path shot = page_->work / "shot.png";
-  const Result r =
-      RunChromium(chromium, page_->html_path, page_->work, "--screenshot=" + Quote(shot.string()));
+  const Result r = RunChromium(chromium, page_->html_path, page_->work,
+                               "--screenshot=" + ShellQuote(shot.string()));
   EXPECT_EQ(r.rc, 0) << r.err;
   ASSERT_TRUE(fs::is_regular_file(shot)) << r.err;
   EXPECT_GT(fs::file_size(shot), 20u * 1024u);
@@ -364,7 +330,7 @@ TEST(LabReportBrowserCheck, DetectsScriptErrors) {
          "<script>console.error('report error');</script><script>noSuchFunction();</script>"
          "</body></html>\n";
   const Result r =
-      RunChromium(chromium, html, work, "--screenshot=" + Quote((work / "shot.png").string()));
+      RunChromium(chromium, html, work, "--screenshot=" + ShellQuote((work / "shot.png").string()));
   const std::vector<std::string> problems = ScriptProblems(r.err);
   fs::remove_all(work);
   bool uncaught = false, console_error = false;

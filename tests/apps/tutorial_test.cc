@@ -1,17 +1,16 @@
 // Executes docs/lab_tutorial.md end to end: every `echoservo` command in its bash blocks,
 // in order, in a scratch folder, and checks what the page says about each step.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <array>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include "tests/test_util/cli_runner.h"
 
 namespace echoservo {
 namespace {
@@ -33,18 +32,6 @@ std::vector<std::string> TutorialCommands() {
   return commands;
 }
 
-std::string RunCommand(const fs::path& dir, const std::string& args, int* rc) {
-  const std::string cmd = "cd '" + dir.string() + "' && " + ECHOSERVO_CLI + " " + args + " 2>/dev/null";
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  std::string out;
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) out.append(buf.data(), n);
-  const int status = ::pclose(pipe);
-  *rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return out;
-}
-
 TEST(Tutorial, RunsEndToEndAndTellsTheTruth) {
   const std::vector<std::string> commands = TutorialCommands();
   ASSERT_EQ(commands.size(), 6u) << "the tutorial's steps changed: update this test";
@@ -54,10 +41,9 @@ TEST(Tutorial, RunsEndToEndAndTellsTheTruth) {
   std::vector<nlohmann::json> out;
   for (const std::string& c : commands) {
     const bool measures = c.rfind("lab compare", 0) == 0 || c.rfind("lab diagnose", 0) == 0;
-    int rc = -1;
-    const std::string text = RunCommand(dir, c + (measures ? " --json" : ""), &rc);
-    ASSERT_EQ(rc, 0) << "echoservo " << c;
-    out.push_back(measures ? nlohmann::json::parse(text) : nlohmann::json{{"text", text}});
+    const auto r = echoservo::testing::RunCli(c + (measures ? " --json" : ""), dir);
+    ASSERT_EQ(r.rc, 0) << "echoservo " << c;
+    out.push_back(measures ? nlohmann::json::parse(r.out) : nlohmann::json{{"text", r.out}});
   }
   // 1: 16 trials.
   EXPECT_EQ(std::distance(fs::directory_iterator(dir / "tutorial_data"), fs::directory_iterator{}), 32);

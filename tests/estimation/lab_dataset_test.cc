@@ -15,28 +15,31 @@
 #include "estimation/lab_dataset.h"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
-#include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <numbers>
-#include <ostream>
 #include <random>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "hw/trial.h"
 #include "tests/test_util/expect_error.h"
+#include "tests/test_util/temp_dir.h"
+#include "tests/test_util/trial_files.h"
 
 namespace echoservo::estimation {
 namespace {
 
 namespace fs = std::filesystem;
+using echoservo::testing::BadCell;
+using echoservo::testing::BadTrial;
 using echoservo::testing::ExpectContains;
+using echoservo::testing::MalformedJsonSidecar;
+using echoservo::testing::MissingJsonSidecar;
+using echoservo::testing::MissingLastColumn;
+using echoservo::testing::TempDir;
 
 hw::CatheterConfig Config() {
   hw::CatheterConfig c;
@@ -191,62 +194,6 @@ TEST(PrepareLabDataset, NoiseIsTheMedianOverTrials) {
 
 // ------------------------------------------------------------------ LoadLabDataset
 
-class TempDir {
- public:
-  // Unique to this process and test; parameterised test names contain '/'.
-  TempDir() {
-    std::string name = ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    std::replace(name.begin(), name.end(), '/', '_');
-    path_ = fs::temp_directory_path() /
-            ("echoservo_lab_dataset_" + std::to_string(::getpid()) + "_" + name);
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
-
-std::vector<std::string> ReadLines(const fs::path& p) {
-  std::ifstream in(p);
-  std::vector<std::string> lines;
-  for (std::string line; std::getline(in, line);) lines.push_back(line);
-  return lines;
-}
-
-void WriteLines(const fs::path& p, const std::vector<std::string>& lines) {
-  std::ofstream out(p, std::ios::trunc);
-  for (const std::string& l : lines) out << l << "\n";
-}
-
-// Replaces field `column` (0-based) of CSV line `line` (1-based, the header is line 1).
-void SetField(const fs::path& csv, std::size_t line, std::size_t column, const std::string& value) {
-  std::vector<std::string> lines = ReadLines(csv);
-  std::vector<std::string> fields;
-  std::stringstream ss(lines.at(line - 1));
-  for (std::string f; std::getline(ss, f, ',');) fields.push_back(f);
-  fields.at(column) = value;
-  std::string joined;
-  for (std::size_t i = 0; i < fields.size(); ++i) {
-    if (i > 0) joined.push_back(',');
-    joined.append(fields[i]);
-  }
-  lines[line - 1] = joined;
-  WriteLines(csv, lines);
-}
-
-struct BadTrial {
-  const char* name;
-  std::function<void(const fs::path& csv)> corrupt;  // the CSV of the bad trial
-  std::vector<std::string> expected;                 // in the error message
-};
-
-void PrintTo(const BadTrial& b, std::ostream* os) { *os << b.name; }
-
 class LoadLabDatasetBad : public ::testing::TestWithParam<BadTrial> {
  protected:
   // Three good trials and one ("trial_1_bad") corrupted.
@@ -259,7 +206,7 @@ class LoadLabDatasetBad : public ::testing::TestWithParam<BadTrial> {
 };
 
 TEST_P(LoadLabDatasetBad, ThrowsNamingTheFileUnlessSkipped) {
-  TempDir dir;
+  TempDir dir("lab_dataset", /*create=*/true);
   Write(dir.path());
   try {
     LoadLabDataset(dir.path());
@@ -283,7 +230,7 @@ TEST_P(LoadLabDatasetBad, ThrowsNamingTheFileUnlessSkipped) {
 }
 
 TEST_P(LoadLabDatasetBad, AllBadThrowsEvenWhenSkipping) {
-  TempDir dir;
+  TempDir dir("lab_dataset", /*create=*/true);
   hw::WriteTrial(dir.path(), MakeTrial("trial_1_bad", 300, [](double t) { return t; }));
   GetParam().corrupt(dir.path() / "trial_1_bad.csv");
   LabDatasetOptions o;
@@ -302,31 +249,20 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         // Line 8 is the 7th sample; column 3 is `tip`.
         BadTrial{"NonNumericCell",
-                 [](const fs::path& csv) { SetField(csv, 8, 3, "abc"); },
+                 BadCell(8, 3, "abc"),
                  {".csv", "line 8", "column 'tip'", "not a number", "abc"}},
-        BadTrial{"NaN",
-                 [](const fs::path& csv) { SetField(csv, 12, 4, "nan"); },
-                 {".csv", "line 12", "column 'force'", "NaN"}},
+        BadTrial{"NaN", BadCell(12, 4, "nan"), {".csv", "line 12", "column 'force'", "NaN"}},
         BadTrial{"NonMonotonicTime",
-                 [](const fs::path& csv) { SetField(csv, 20, 0, "0.005"); },
+                 BadCell(20, 0, "0.005"),
                  {".csv", "line 20", "strictly increasing"}},
         BadTrial{"MissingColumn",
-                 [](const fs::path& csv) {
-                   std::vector<std::string> lines = ReadLines(csv);
-                   for (std::string& l : lines) l = l.substr(0, l.rfind(','));  // drop `force`
-                   WriteLines(csv, lines);
-                 },
+                 MissingLastColumn(),  // drops `force`
                  {".csv", "line 1", "missing required column 'force'"}},
-        BadTrial{"MissingJsonSidecar",
-                 [](const fs::path& csv) { fs::remove(fs::path(csv).replace_extension(".json")); },
-                 {"trial_1_bad.json", "JSON"}},
+        BadTrial{"MissingJsonSidecar", MissingJsonSidecar(), {"trial_1_bad.json", "JSON"}},
         BadTrial{"MalformedJson",
-                 [](const fs::path& csv) {
-                   std::ofstream(fs::path(csv).replace_extension(".json"), std::ios::trunc)
-                       << "{\"sheath_id_mm\": 2.38, \"guidewire_od_mm\": ";
-                 },
+                 MalformedJsonSidecar("{\"sheath_id_mm\": 2.38, \"guidewire_od_mm\": "),
                  {"trial_1_bad.json", "JSON parse error"}}),
-    [](const ::testing::TestParamInfo<BadTrial>& info) { return std::string(info.param.name); });
+    echoservo::testing::BadTrialName);
 
 TEST(LoadLabDataset, MissingFolderNamesIt) {
   const fs::path missing = fs::temp_directory_path() / "echoservo_no_such_dataset_folder";

@@ -1,0 +1,15 @@
+// Registration of the imaging subcommands, one file each: info (files), render,
+// scanner/ingest/replay (OpenIGTLink streaming).
+#pragma once
+
+namespace CLI {
+class App;
+}
+
+namespace echoservo::apps {
+
+void AddInfoCommand(CLI::App& app);
+void AddRenderCommand(CLI::App& app);
+void AddStreamCommands(CLI::App& app);
+
+}  // namespace echoservo::apps

@@ -1,0 +1,1 @@
+# Sources of imaging/igtl (appended to IMAGING_SOURCES).

@@ -1,0 +1,1 @@
+# Sources of imaging/io (appended to IMAGING_SOURCES).

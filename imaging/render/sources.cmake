@@ -1,0 +1,1 @@
+# Sources of imaging/render (appended to IMAGING_SOURCES).

@@ -1,0 +1,1 @@
+# Sources of imaging/sim (appended to IMAGING_SOURCES).

@@ -1,0 +1,68 @@
+// Runs the echoservo binary (ECHOSERVO_CLI, defined by echoservo_test()) or any shell
+// command line as a user would, for the end-to-end tests: stdout captured, stderr through
+// a temporary file, and the exit code.
+#pragma once
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <atomic>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <system_error>
+
+namespace echoservo::testing {
+
+struct RunResult {
+  int rc = -1;      // exit status; -1 if the command could not run or did not exit
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+// The whole file (binary), or empty if it cannot be read.
+inline std::string ReadFile(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Single-quotes `s` for /bin/sh.
+inline std::string ShellQuote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+// Runs a shell command line; its stderr (the last command's, for a list) goes through a
+// temporary file unique to this process and call.
+inline RunResult RunShell(const std::string& command) {
+  static std::atomic<int> counter{0};
+  const std::filesystem::path err_path =
+      std::filesystem::temp_directory_path() / ("echoservo_run_err_" + std::to_string(::getpid()) +
+                                                "_" + std::to_string(counter++) + ".txt");
+  RunResult r;
+  FILE* pipe = ::popen((command + " 2>" + ShellQuote(err_path.string())).c_str(), "r");
+  if (pipe == nullptr) return r;
+  std::array<char, 4096> buf{};
+  std::size_t n = 0;
+  while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
+  const int status = ::pclose(pipe);
+  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.err = ReadFile(err_path);
+  std::error_code ec;
+  std::filesystem::remove(err_path, ec);
+  return r;
+}
+
+// Runs `echoservo ARGS` (ARGS as a shell would split them), in `cwd` if given.
+inline RunResult RunCli(const std::string& args, const std::filesystem::path& cwd = {}) {
+  const std::string cli = std::string(ECHOSERVO_CLI) + " " + args;
+  return RunShell(cwd.empty() ? cli : "cd " + ShellQuote(cwd.string()) + " && " + cli);
+}
+
+}  // namespace echoservo::testing
