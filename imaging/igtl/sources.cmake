@@ -1,1 +1,14 @@
-# Sources of imaging/igtl (appended to IMAGING_SOURCES).
+# Sources of imaging/igtl (appended to IMAGING_SOURCES): the OpenIGTLink IMAGE codec, the
+# scanner server, the ingest client and a synthetic phantom source. libOpenIGTLink has no
+# imported target; its include directory is added (SYSTEM, PRIVATE) after the target in
+# imaging/CMakeLists.txt. UseOpenIGTLink.cmake is deliberately not included (it adds
+# -fno-tree-vectorize).
+list(APPEND IMAGING_SOURCES
+  igtl/crc64.cc
+  igtl/image_message.cc
+  igtl/tcp.cc
+  igtl/image_server.cc
+  igtl/ingest.cc
+  igtl/phantom_source.cc)
+find_package(Threads REQUIRED)
+list(APPEND IMAGING_PRIVATE_DEPS ${OpenIGTLink_LIBRARIES} Threads::Threads)

@@ -1,1 +1,7 @@
 # Sources of imaging/io (appended to IMAGING_SOURCES).
+list(APPEND IMAGING_SOURCES
+  io/metaio_internal.cc
+  io/volume_io.cc
+  io/plus_sequence.cc
+  io/recording.cc)
+list(APPEND IMAGING_PRIVATE_DEPS ${VTK_LIBRARIES} ZLIB::ZLIB)
