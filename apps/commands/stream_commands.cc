@@ -15,7 +15,9 @@
 #include "imaging/igtl/image_server.h"
 #include "imaging/igtl/ingest.h"
 #include "imaging/igtl/phantom_source.h"
+#include "imaging/io/plus_sequence.h"
 #include "imaging/io/recording.h"
+#include "imaging/io/truth_fields.h"
 #include "imaging/sim/simulated_scanner.h"
 
 namespace echoservo::apps {
@@ -79,6 +81,29 @@ int Serve(imaging::VolumeSource& source, igtl::ImageServerOptions options, bool 
   return 0;
 }
 
+// Pulls `frames` frames from `source` and writes them, with their ground truth as
+// per-frame fields (imaging/io/truth_fields.h), as one compressed PLUS sequence.
+void RecordFrames(imaging::VolumeSource& source, const std::string& path, std::int64_t frames, bool json) {
+  std::vector<imaging::Volume> volumes;
+  std::vector<std::optional<imaging::FrameGroundTruth>> truths;
+  while (static_cast<std::int64_t>(volumes.size()) < frames) {
+    std::optional<imaging::SourceFrame> f = source.Next();
+    if (!f) break;
+    volumes.push_back(std::move(f->volume));
+    truths.push_back(f->truth);
+  }
+  imaging::PlusSequence seq = imaging::VolumesToSequence(volumes);
+  for (std::size_t i = 0; i < truths.size(); ++i) {
+    if (truths[i]) imaging::SetTruthFields(*truths[i], seq.frames[i].fields);
+  }
+  imaging::WritePlusSequence(seq, path, true);
+  if (json) {
+    std::cout << nlohmann::json{{"recorded", path}, {"frames", volumes.size()}}.dump(2) << "\n";
+  } else {
+    std::cout << "recorded " << volumes.size() << " frames with ground truth to " << path << "\n";
+  }
+}
+
 void AddScanner(CLI::App& app) {
   auto* cmd = app.add_subcommand("scanner", "Serve simulated volumes as OpenIGTLink IMAGE messages");
   struct Args {
@@ -90,10 +115,14 @@ void AddScanner(CLI::App& app) {
     std::string source = "sim";
     std::string stamps = "wall";
     int min_clients = 1;
+    std::string record;
     bool json = false;
   };
   auto args = std::make_shared<Args>();
   cmd->add_option("--port", args->port, "TCP port (0: ephemeral)")->check(CLI::Range(0, 65535));
+  cmd->add_option("--record", args->record,
+                  "instead of serving, write --frames volumes (default 25) with their ground truth "
+                  "as a PLUS sequence (.igs.mha, compressed)");
   cmd->add_option("--bind", args->bind, "IPv4 address to listen on (0.0.0.0: all)");
   cmd->add_option("--rate", args->rate, "volumes/s (default: the source's rate; 0: as fast as possible)");
   cmd->add_option("--duration", args->duration, "stop after S seconds of streaming (0: endless)")
@@ -116,6 +145,10 @@ void AddScanner(CLI::App& app) {
       igtl::PhantomOptions o;
       if (args->rate > 0) o.rate_hz = args->rate;
       source = std::make_unique<igtl::PhantomSource>(o);
+    }
+    if (!args->record.empty()) {
+      RecordFrames(*source, args->record, args->frames > 0 ? args->frames : 25, args->json);
+      return;
     }
     igtl::ImageServerOptions so;
     so.bind_address = args->bind;

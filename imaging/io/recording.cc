@@ -1,5 +1,7 @@
 #include "imaging/io/recording.h"
 
+#include "imaging/io/truth_fields.h"
+
 #include <algorithm>
 #include <cctype>
 #include <stdexcept>
@@ -27,7 +29,8 @@ class SequenceSource : public VolumeSource {
   }
   std::optional<SourceFrame> Next() override {
     if (next_ >= seq_.frames.size()) return std::nullopt;
-    return SourceFrame{SequenceFrameToVolume(seq_, next_++), std::nullopt};
+    const std::size_t i = next_++;
+    return SourceFrame{SequenceFrameToVolume(seq_, i), TruthFromFields(seq_.frames[i].fields)};
   }
   double nominal_rate_hz() const override { return rate_hz_; }
 

@@ -5,3 +5,4 @@ list(APPEND IMAGING_SOURCES
   io/plus_sequence.cc
   io/recording.cc)
 list(APPEND IMAGING_PRIVATE_DEPS ${VTK_LIBRARIES} ZLIB::ZLIB)
+list(APPEND IMAGING_SOURCES io/truth_fields.cc)
