@@ -1,11 +1,15 @@
 // The slice/MIP panel and the 3D view of imaging/render, and `echoservo render`.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
+#include <thread>
 
 #include "imaging/io/volume_io.h"
 #include "imaging/render/volume_render.h"
@@ -18,6 +22,7 @@ namespace {
 
 using echoservo::testing::ExpectContains;
 using echoservo::testing::RunCli;
+using echoservo::testing::RunResult;
 using echoservo::testing::RunShell;
 using echoservo::testing::ShellQuote;
 using echoservo::testing::TempDir;
@@ -272,15 +277,21 @@ TEST(RenderCli, ThreeDUnderXvfb) {
   if (RunShell("command -v xvfb-run").rc != 0) GTEST_SKIP() << "xvfb-run is not installed";
   TempDir dir("render", true);
   const auto png = dir.path() / "3d.png";
-  const std::string command = "xvfb-run -a " + std::string(ECHOSERVO_CLI) +
-                              " render --phantom --3d --volume-rendering --width 640 --height 480"
-                              " --tip 14,12,30 --target 17,10,38 --axis 4,5,6,10,7,24 --out " +
-                              ShellQuote(png.string());
-  auto r = RunShell(command);
-  // Two xvfb-run -a started at the same moment (parallel ctest, other users) can pick the
-  // same display number; one then cannot open it. Retry that once.
-  if (r.rc != 0 && r.err.find("cannot open X display") != std::string::npos) {
-    r = RunShell(command);
+  // A display number and an auth file of this process's own: `xvfb-run -a` keeps its cookie
+  // in ./.Xauthority by default, shared by every test started in this directory, and two
+  // -a starts can race for the same number. Under load Xvfb can also be slow to accept
+  // clients, so a failure to open the display is retried.
+  const std::string args = std::string(ECHOSERVO_CLI) +
+                           " render --phantom --3d --volume-rendering --width 640 --height 480"
+                           " --tip 14,12,30 --target 17,10,38 --axis 4,5,6,10,7,24 --out " +
+                           ShellQuote(png.string());
+  RunResult r;
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    const int server = 200 + static_cast<int>(::getpid() % 500) + 7 * attempt;
+    r = RunShell("xvfb-run -n " + std::to_string(server) + " -f " +
+                 ShellQuote((dir.path() / ("xauth" + std::to_string(attempt))).string()) + " " + args);
+    if (r.rc == 0 || r.err.find("cannot open X display") == std::string::npos) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(500 * (attempt + 1)));
   }
   ASSERT_EQ(r.rc, 0) << r.out << r.err;
   const cv::Mat img = cv::imread(png.string(), cv::IMREAD_COLOR);
