@@ -17,6 +17,7 @@ int RunCli(int argc, char** argv) {
   AddSimCommands(app);
   AddLabCommands(app);
   AddInfoCommand(app);
+  AddDetectCommand(app);
   AddRenderCommand(app);
   AddStreamCommands(app);
   try {

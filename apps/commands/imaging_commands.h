@@ -9,6 +9,7 @@ class App;
 namespace echoservo::apps {
 
 void AddInfoCommand(CLI::App& app);
+void AddDetectCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);
 void AddStreamCommands(CLI::App& app);
 

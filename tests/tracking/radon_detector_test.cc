@@ -1,0 +1,226 @@
+// Radon catheter-axis detector on simulated volumes (SimulatedScanner ground truth), on a
+// real catheter-free volume, and on bad input.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <numbers>
+#include <stdexcept>
+#include <vector>
+
+#include "imaging/io/volume_io.h"
+#include "imaging/sim/simulated_scanner.h"
+#include "tracking/radon_detector.h"
+
+namespace echoservo::tracking {
+namespace {
+
+using imaging::sim::SimulatedScanner;
+using imaging::sim::SimulatedScannerOptions;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+struct Case {
+  double yaw_deg, tilt_deg, depth_mm, lateral_mm, sound_speed, advance_mm;
+};
+
+SimulatedScannerOptions Options(const Case& c) {
+  SimulatedScannerOptions o;
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.linear() = (Eigen::AngleAxisd(c.yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd((90.0 - c.tilt_deg) * kDeg, Eigen::Vector3d::UnitY()))
+                   .toRotationMatrix();
+  const Eigen::Vector3d dir = t.linear().col(2);
+  t.translation() = Eigen::Vector3d(c.lateral_mm, 0, c.depth_mm) - 48.0 * dir;
+  o.catheter_pose.base_to_world = t;
+  o.catheter_pose.advance_mm = c.advance_mm;
+  Eigen::Isometry3d a = t;
+  a.translation() += (48.0 + 15.0) * dir;
+  o.annulus_to_world = a;
+  o.medium_sound_speed_m_s = c.sound_speed;
+  o.reverberation = true;
+  return o;
+}
+
+struct Errors {
+  double angle_deg, axis_offset_mm, tip_mm, target_mm;
+};
+
+Errors Measure(const CatheterDetection& d, const imaging::FrameGroundTruth& t) {
+  Errors e{};
+  e.angle_deg = AngleBetweenLines(d.axis, Line3{t.axis_point_mm, t.axis_direction}) / kDeg;
+  e.axis_offset_mm = PointToLineDistance(d.axis, t.tip_mm);
+  e.tip_mm = (d.tip_mm - t.tip_mm).norm();
+  e.target_mm = d.target_found ? (d.target_mm - t.target_mm).norm() : 1e9;
+  return e;
+}
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+TEST(RadonDetector, FindsTheSimulatedCatheterAxisTipAndTarget) {
+  const std::vector<Case> cases = {
+      {0, 10, 60, 0, 1482, 0},  {0, 10, 60, 0, 1540, 4},  {30, 5, 55, -5, 1482, 0},
+      {-20, 15, 70, 5, 1540, 2}, {180, 10, 50, 0, 1482, 0}, {15, 0, 65, 0, 1600, 0},
+  };
+  RadonDetector detector;
+  std::vector<double> ang, off, tip, tgt;
+  for (const auto& c : cases) {
+    SimulatedScanner scanner(Options(c));
+    const auto frame = scanner.Next();
+    ASSERT_TRUE(frame && frame->truth && frame->truth->catheter_visible);
+    const auto d = detector.Detect(frame->volume);
+    const Errors e = Measure(d, *frame->truth);
+    std::printf("yaw %5.0f tilt %3.0f depth %3.0f c %4.0f: found %d conf %.2f z %.1f len %.1f | angle %.3f deg, "
+                "offset %.3f mm, tip %.3f mm, target %.3f mm\n",
+                c.yaw_deg, c.tilt_deg, c.depth_mm, c.sound_speed, d.found, d.confidence, d.peak_z,
+                d.line_length_mm, e.angle_deg, e.axis_offset_mm, e.tip_mm, e.target_mm);
+    EXPECT_TRUE(d.found);
+    ang.push_back(e.angle_deg);
+    off.push_back(e.axis_offset_mm);
+    tip.push_back(e.tip_mm);
+    tgt.push_back(e.target_mm);
+  }
+  std::printf("median: angle %.3f deg, offset %.3f mm, tip %.3f mm, target %.3f mm\n", Median(ang),
+              Median(off), Median(tip), Median(tgt));
+  // Measured (docs/detector.md): median 2.6°, 0.31 mm, 0.56 mm, 0.98 mm; worst 3.4°,
+  // 0.73 mm, 0.96 mm, 1.09 mm. The remaining angle bias comes from the sheath's shallow
+  // specular surface vs the thinner wire; the bounds keep a margin over what is achieved.
+  EXPECT_LT(Median(ang), 4.0);
+  EXPECT_LT(Median(off), 0.6);
+  EXPECT_LT(Median(tip), 0.9);
+  EXPECT_LT(Median(tgt), 1.6);
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    EXPECT_LT(ang[i], 5.0) << i;
+    EXPECT_LT(off[i], 1.2) << i;
+    EXPECT_LT(tip[i], 1.5) << i;
+    EXPECT_LT(tgt[i], 2.0) << i;
+  }
+}
+
+TEST(RadonDetector, TracksAcrossFramesNearThePreviousAxis) {
+  Case c{0, 10, 60, 0, 1482, 0};
+  SimulatedScanner scanner(Options(c));
+  RadonDetector detector;
+  for (double advance : {0.0, 1.0, 2.0}) {
+    scanner.SetCatheterPose({Options(c).catheter_pose.base_to_world, advance});
+    const auto frame = scanner.Next();
+    const auto d = detector.Track(frame->volume);
+    ASSERT_TRUE(d.found) << advance;
+    const Errors e = Measure(d, *frame->truth);
+    std::printf("track advance %.0f: tracked %d conf %.2f angle %.3f tip %.3f\n", advance, d.tracked,
+                d.confidence, e.angle_deg, e.tip_mm);
+    EXPECT_EQ(d.tracked, advance > 0.0);
+    EXPECT_LT(e.angle_deg, 5.0);
+    EXPECT_LT(e.tip_mm, 1.5);
+    EXPECT_GT(d.axis.direction.dot(frame->truth->axis_direction), 0.0);  // points to the tip
+  }
+}
+
+imaging::Volume Synthetic(int n, double spacing, std::uint8_t fill) {
+  imaging::VolumeGeometry g;
+  g.dims = Eigen::Vector3i(n, n, n);
+  g.spacing_mm = Eigen::Vector3d::Constant(spacing);
+  return imaging::Volume::Create(g, fill);
+}
+
+TEST(RadonDetector, BadInputIsNeverAFabricatedAxis) {
+  const RadonDetector detector;
+  auto not_found_or_error = [&](const imaging::Volume& v, const char* what) {
+    try {
+      const auto d = detector.Detect(v);
+      EXPECT_FALSE(d.found) << what;
+    } catch (const std::invalid_argument&) {
+    }
+  };
+  not_found_or_error(Synthetic(64, 0.5, 0), "all zero");
+  not_found_or_error(Synthetic(64, 0.5, 128), "constant");
+  not_found_or_error(Synthetic(64, 0.5, 255), "saturated");
+  not_found_or_error(Synthetic(7, 0.5, 200), "tiny");
+  {
+    auto v = Synthetic(64, 0.5, 20);
+    for (int i = 0; i < 64; ++i) v.at(i, 32, 32) = 250;  // a line, but in a 1:8 anisotropic grid
+    imaging::VolumeGeometry g = v.geometry();
+    g.spacing_mm = Eigen::Vector3d(0.25, 0.25, 2.0);
+    auto a = imaging::Volume::Create(g, 20);
+    std::copy(v.voxels().begin(), v.voxels().end(), a.voxels().begin());
+    EXPECT_THROW(detector.Detect(a), std::invalid_argument);
+  }
+  {
+    // Speckle-like noise without a line.
+    auto v = Synthetic(80, 0.5, 0);
+    std::uint32_t state = 12345;
+    for (auto& x : v.voxels()) {
+      state = state * 1664525u + 1013904223u;
+      x = static_cast<std::uint8_t>(60 + (state >> 24) % 60);
+    }
+    not_found_or_error(v, "noise");
+  }
+}
+
+TEST(RadonDetector, SyntheticBrightLineIsFoundWithSubVoxelAccuracy) {
+  auto v = Synthetic(96, 0.5, 0);
+  std::uint32_t state = 7;
+  for (auto& x : v.voxels()) {
+    state = state * 1664525u + 1013904223u;
+    x = static_cast<std::uint8_t>(40 + (state >> 24) % 40);
+  }
+  const Eigen::Vector3d p0(10.0, 24.3, 20.7), dir = Eigen::Vector3d(1.0, 0.15, 0.25).normalized();
+  const double tip_s = 30.0;  // mm along dir from p0; the line enters at the volume's x = 0 face
+  for (int k = 0; k < 96; ++k)
+    for (int j = 0; j < 96; ++j)
+      for (int i = 0; i < 96; ++i) {
+        const Eigen::Vector3d p = v.IndexToPhysical(Eigen::Vector3d(i, j, k));
+        const double s = (p - p0).dot(dir);
+        const double r = (p - p0 - s * dir).norm();
+        if (s <= tip_s && r < 1.5) {
+          const double val = 250.0 * std::exp(-r * r / (2 * 0.4 * 0.4));
+          v.at(i, j, k) = static_cast<std::uint8_t>(std::max<double>(v.at(i, j, k), val));
+        }
+      }
+  const auto d = RadonDetector().Detect(v);
+  ASSERT_TRUE(d.found);
+  const double angle = AngleBetweenLines(d.axis, Line3{p0, dir}) / kDeg;
+  const double tip = (d.tip_mm - (p0 + tip_s * dir)).norm();
+  std::printf("synthetic: angle %.3f deg, offset %.3f mm, tip %.3f mm, conf %.2f\n", angle,
+              PointToLineDistance(d.axis, p0), tip, d.confidence);
+  EXPECT_LT(angle, 0.5);
+  EXPECT_LT(PointToLineDistance(d.axis, p0), 0.25);
+  EXPECT_LT(tip, 1.0);
+  EXPECT_GT(d.axis.direction.dot(dir), 0.0);
+}
+
+TEST(RadonDetector, CatheterFreeVolumesAreNotFound) {
+  for (bool annulus : {true, false}) {
+    SimulatedScannerOptions o;
+    o.catheter = false;
+    o.annulus = annulus;
+    SimulatedScanner scanner(o);
+    const auto frame = scanner.Next();
+    const auto d = RadonDetector().Detect(frame->volume);
+    std::printf("catheter-free (annulus %d): found %d conf %.2f z %.1f len %.1f\n", annulus, d.found,
+                d.confidence, d.peak_z, d.line_length_mm);
+    EXPECT_FALSE(d.found);
+  }
+}
+
+TEST(RadonDetector, RealSpinePhantomVolumeIsNotFound) {
+  const auto path = std::filesystem::path(ECHOSERVO_DATA_DIR) / "plus" / "SpinePhantomFreehandReconstructed.mha";
+  const auto v = imaging::ReadVolume(path);
+  CatheterDetection d;
+  try {
+    d = RadonDetector().Detect(v);
+  } catch (const std::invalid_argument&) {
+    return;
+  }
+  std::printf("spine: found %d conf %.2f z %.1f len %.1f\n", d.found, d.confidence, d.peak_z, d.line_length_mm);
+  EXPECT_FALSE(d.found);
+}
+
+}  // namespace
+}  // namespace echoservo::tracking
