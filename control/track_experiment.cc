@@ -59,8 +59,7 @@ ServoConfig SeedServoConfig(const hw::PlantOptions& plant, bool friction_feedfor
     // Nominal friction of the configuration, as calibration would measure it.
     hw::SimulatedCatheter probe(plant);
     c.feedforward.coulomb_n = probe.model().FrictionLevelN();
-    c.feedforward.viscous_n_per_mm_s = probe.model().FrictionMagnitudeN(100.0) / 100.0 -
-                                       probe.model().FrictionMagnitudeN(0.0) / 100.0;
+    c.feedforward.viscous_n_per_mm_s = probe.model().ViscousSlopeNPerMmS();
   }
   return c;
 }

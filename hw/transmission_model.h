@@ -54,6 +54,11 @@ class TransmissionModel {
   double FrictionMagnitudeN(double speed_mm_s) const;
   // Breakaway friction (magnitude at rest), the "friction level" of the configuration.
   double FrictionLevelN() const { return friction_level_n_; }
+  // Mean slope of friction against speed over 0–100 mm/s (N/(mm/s)): the viscous term a
+  // Coulomb + viscous calibration would see.
+  double ViscousSlopeNPerMmS() const {
+    return (FrictionMagnitudeN(100.0) - friction_level_n_) / 100.0;
+  }
   // Drive (guidewire tip-end) position for a base position and the signed friction force.
   double DriveMm(double base_mm, double friction_force_n) const;
   double BacklashWidthMm() const { return width_mm_; }
@@ -67,7 +72,9 @@ class TransmissionModel {
   double StepTip(double tip_mm, double drive_mm, double dt_s) const;
   // The same with the traversal fraction 1 − exp(−dt/τ) precomputed by the caller
   // (TraversalFraction(dt)), for loops over uniformly sampled data.
-  double TraversalFraction(double dt_s) const { return tau_s_ > 0.0 ? 1.0 - std::exp(-dt_s / tau_s_) : 1.0; }
+  double TraversalFraction(double dt_s) const {
+    return tau_s_ > 0.0 ? 1.0 - std::exp(-dt_s / tau_s_) : 1.0;
+  }
   double StepTipWithFraction(double tip_mm, double drive_mm, double fraction) const {
     const double half = 0.5 * width_mm_;
     const double target = std::clamp(tip_mm, drive_mm - half, drive_mm + half);

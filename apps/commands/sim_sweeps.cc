@@ -122,8 +122,7 @@ void RunCalibrate(const SweepFlags& f) {
   // What the simulator knows (a real rig would not): the friction level and the width
   // of the tip-vs-base loop it should produce (deadzone plus 2F/k with compliance).
   const double truth_friction = plant.model().FrictionLevelN();
-  const double truth_viscous =
-      (plant.model().FrictionMagnitudeN(100.0) - plant.model().FrictionMagnitudeN(0.0)) / 100.0;
+  const double truth_viscous = plant.model().ViscousSlopeNPerMmS();
   const double truth_width = plant.model().BacklashWidthMm();
   if (f.json) {
     nlohmann::json samples = nlohmann::json::array();
