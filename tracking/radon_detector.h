@@ -29,6 +29,8 @@
 #include <optional>
 
 #include "imaging/volume.h"
+#include "tracking/axis_profile.h"
+#include "tracking/echo_axis_fit.h"
 #include "tracking/line_fit.h"
 
 namespace echoservo::tracking {
@@ -38,11 +40,10 @@ struct RadonDetectorOptions {
   int coarse_directions = 2000;       // Fibonacci hemisphere size at the coarse level
   double fine_cone_rad = 0.08;        // refinement cone half-angle around the coarse best
   int fine_steps = 9;                 // refinement grid, fine_steps² directions per pass
-  double fit_radius_mm = 2.5;         // voxels within this distance enter the line fit
-  // Fit only first echoes: a voxel with a brighter one up to this far shallower (image z)
-  // in its column is left out (comet tails, far sheath wall). 0: off.
-  double first_echo_mm = 3.0;
-  double tip_fraction = 0.4;          // profile drop (of its running level) ending the line
+  // Full-resolution axis fit (tracking/echo_axis_fit.h): fit cylinder, first-echo look-back
+  // along the beam, and the catheter's outer diameters (the echo comes from the near wall).
+  EchoAxisFitOptions fit;
+  EdgeOptions edge;                   // tip and target edges (tracking/axis_profile.h)
   double min_line_length_mm = 6.0;    // shorter bright runs are not a catheter
   double min_confidence = 0.5;        // below: not found
   double tracking_cone_rad = 0.17;    // tracking search cone half-angle (~10°)

@@ -183,7 +183,10 @@ TEST(RadonDetector, SyntheticBrightLineIsFoundWithSubVoxelAccuracy) {
           v.at(i, j, k) = static_cast<std::uint8_t>(std::max<double>(v.at(i, j, k), val));
         }
       }
-  const auto d = RadonDetector().Detect(v);
+  RadonDetectorOptions o;  // a bright line, not a tube: no near-wall offset
+  o.fit.sheath_diameter_mm = 0;
+  o.fit.wire_diameter_mm = 0;
+  const auto d = RadonDetector(o).Detect(v);
   ASSERT_TRUE(d.found);
   const double angle = AngleBetweenLines(d.axis, Line3{p0, dir}) / kDeg;
   const double tip = (d.tip_mm - (p0 + tip_s * dir)).norm();
