@@ -2,6 +2,7 @@
 
 #include "tracking/axis_profile.h"
 #include "tracking/radon_transform.h"
+#include "tracking/tube_check.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -50,6 +51,7 @@ void RadonDetectorOptions::Validate() const {
   if (!(fine_cone_rad > 0 && fine_cone_rad < 1)) bad("fine_cone_rad");
   if (fine_steps < 2 || fine_steps > 101) bad("fine_steps");
   fit.Validate();
+  tube.Validate();
   if (!(edge.edge_fraction > 0 && edge.edge_fraction < 1)) bad("edge.edge_fraction");
   if (!(edge.dynamic_range_db > 0 && edge.dynamic_range_db <= 120)) bad("edge.dynamic_range_db");
   if (!(min_line_length_mm >= 0 && std::isfinite(min_line_length_mm))) bad("min_line_length_mm");
@@ -148,10 +150,15 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
   out.target_found = target.found;
   out.target_mm = target.target_mm;
 
-  // Confidence: Radon peak contrast (robust z among the directions' best lines) and length.
+  out.tubularity = Tubularity(v, out.axis, out.axis.Parameter(out.tip_mm) - out.line_length_mm,
+                              out.axis.Parameter(out.tip_mm), options_.edge.dynamic_range_db, options_.tube);
+
+  // Confidence: Radon peak contrast (robust z among the directions' best lines), length, and
+  // the line's tube shape (a line within a surface is not a catheter).
   const double c_peak = 1.0 - std::exp(-std::max(0.0, z_score - 10.0) / 8.0);
   const double c_len = std::clamp(out.line_length_mm / (2.0 * std::max(1e-9, options_.min_line_length_mm)), 0.0, 1.0);
-  out.confidence = std::clamp(c_peak * c_len, 0.0, 1.0);
+  const double c_tube = std::clamp((out.tubularity - 0.2) / 0.5, 0.0, 1.0);
+  out.confidence = std::clamp(c_peak * c_len * c_tube, 0.0, 1.0);
   out.tracked = previous != nullptr;
   out.found = out.confidence >= options_.min_confidence && out.line_length_mm >= options_.min_line_length_mm;
   out.peak_z = z_score;

@@ -32,6 +32,7 @@
 #include "tracking/axis_profile.h"
 #include "tracking/echo_axis_fit.h"
 #include "tracking/line_fit.h"
+#include "tracking/tube_check.h"
 
 namespace echoservo::tracking {
 
@@ -43,6 +44,7 @@ struct RadonDetectorOptions {
   // Full-resolution axis fit (tracking/echo_axis_fit.h): fit cylinder, first-echo look-back
   // along the beam, and the catheter's outer diameters (the echo comes from the near wall).
   EchoAxisFitOptions fit;
+  TubeCheckOptions tube;              // tube vs surface test (tracking/tube_check.h)
   EdgeOptions edge;                   // tip and target edges (tracking/axis_profile.h)
   double min_line_length_mm = 6.0;    // shorter bright runs are not a catheter
   double min_confidence = 0.5;        // below: not found
@@ -50,7 +52,7 @@ struct RadonDetectorOptions {
   double tracking_window_mm = 6.0;    // tracking offset window around the previous axis
   // Lines whose point nearest the volume centre lies deeper (image z) than this fraction of
   // the volume's depth are ignored: far-field walls (tank floor) make bright strips there.
-  double max_depth_fraction = 0.85;
+  double max_depth_fraction = 1.0;
   double max_spacing_ratio = 4.0;     // larger max/min spacing ratio: std::invalid_argument
 
   // Throws std::invalid_argument naming the field.
@@ -66,6 +68,7 @@ struct CatheterDetection {
   double confidence = 0.0;                           // [0, 1]
   double line_length_mm = 0.0;                       // bright run length along the axis
   bool tracked = false;                              // result of the tracking search
+  double tubularity = 0.0;  // tracking/tube_check.h: ≈ 1 tube, ≈ 0 line within a surface
   double peak_z = 0.0;  // robust z-score of the Radon peak among its histogram's lines
 };
 

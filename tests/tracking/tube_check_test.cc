@@ -1,0 +1,79 @@
+// Tube-vs-surface test of tracking/tube_check.h on synthetic shapes.
+#include "tracking/tube_check.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+
+#include "tests/test_util/expect_error.h"
+
+namespace echoservo::tracking {
+namespace {
+
+// 0.5 mm voxels, 40 mm cube at z ∈ [40, 80] mm (apex at the origin: beams along ≈ +z);
+// `value(p)` gives the display value at a point.
+imaging::Volume Make(const std::function<double(const Eigen::Vector3d&)>& value) {
+  imaging::VolumeGeometry g;
+  g.dims = Eigen::Vector3i(81, 81, 81);
+  g.spacing_mm = Eigen::Vector3d::Constant(0.5);
+  g.origin_mm = Eigen::Vector3d(-20, -20, 40);
+  auto v = imaging::Volume::Create(g);
+  for (int k = 0; k < 81; ++k)
+    for (int j = 0; j < 81; ++j)
+      for (int i = 0; i < 81; ++i)
+        v.at(i, j, k) = static_cast<std::uint8_t>(std::clamp(value(v.IndexToPhysical(Eigen::Vector3d(i, j, k))), 0.0, 255.0));
+  return v;
+}
+
+const Line3 kAxis{Eigen::Vector3d(0, 0, 60), Eigen::Vector3d::UnitX()};
+
+double Tube(const Eigen::Vector3d& p) {
+  const double r = std::hypot(p.y(), p.z() - 60);
+  return r < 1.0 ? 250.0 : 20.0;
+}
+
+TEST(Tubularity, ACatheterInWaterIsATube) {
+  const auto v = Make(Tube);
+  EXPECT_GT(Tubularity(v, kAxis, -15, 15, 50, {}), 0.95);
+}
+
+TEST(Tubularity, ACometTailBehindTheCatheterIsIgnored) {
+  // Reverberation below the catheter, along the beam (+z), 1–8 mm deep.
+  const auto v = Make([](const Eigen::Vector3d& p) {
+    const double dz = p.z() - 60;
+    if (std::abs(p.y()) < 1.0 && dz > 1 && dz < 8) return 200.0;
+    return Tube(p);
+  });
+  EXPECT_GT(Tubularity(v, kAxis, -15, 15, 50, {}), 0.95);
+}
+
+TEST(Tubularity, ALineWithinAPlaneIsNotATube) {
+  // A bright floor (1 mm thick, ⟂ the beam) containing the line.
+  const auto v = Make([](const Eigen::Vector3d& p) { return std::abs(p.z() - 60) < 0.5 ? 250.0 : 20.0; });
+  EXPECT_LT(Tubularity(v, kAxis, -15, 15, 50, {}), 0.1);
+}
+
+TEST(Tubularity, ThePlaneEdgeIsNotATubeEither) {
+  const auto v = Make([](const Eigen::Vector3d& p) {
+    return std::abs(p.z() - 60) < 0.5 && p.y() > 0 ? 250.0 : 20.0;
+  });
+  EXPECT_LT(Tubularity(v, kAxis, -15, 15, 50, {}), 0.1);
+}
+
+TEST(Tubularity, ACatheterBesideTissueSpeckleIsStillATube) {
+  // Tissue 3 mm away at 30 dB below the catheter's echo (display 150 of 255 over 50 dB).
+  const auto v = Make([](const Eigen::Vector3d& p) { return p.y() > 3.0 ? 100.0 : Tube(p); });
+  EXPECT_GT(Tubularity(v, kAxis, -15, 15, 50, {}), 0.9);
+}
+
+TEST(Tubularity, OutsideTheVolumeIsZeroAndOptionsAreValidated) {
+  const auto v = Make(Tube);
+  EXPECT_EQ(Tubularity(v, Line3{Eigen::Vector3d(0, 0, 500), Eigen::Vector3d::UnitX()}, -5, 5, 50, {}), 0.0);
+  TubeCheckOptions o;
+  o.ring_outer_mm = 2.0;  // inside the inner radius
+  testing::ExpectContains(testing::InvalidArgumentMessage([&] { o.Validate(); }), "ring_outer_mm");
+}
+
+}  // namespace
+}  // namespace echoservo::tracking

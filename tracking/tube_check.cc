@@ -1,0 +1,80 @@
+#include "tracking/tube_check.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "tracking/echo_axis_fit.h"
+#include "tracking/radon_transform.h"
+
+namespace echoservo::tracking {
+
+void TubeCheckOptions::Validate() const {
+  auto bad = [](const std::string& f) { throw std::invalid_argument("TubeCheckOptions: bad " + f); };
+  if (!(core_radius_mm > 0 && core_radius_mm < ring_inner_mm)) bad("core_radius_mm (must be in (0, ring_inner_mm))");
+  if (!(ring_outer_mm > ring_inner_mm && ring_outer_mm < 100)) bad("ring_outer_mm (must be in (ring_inner_mm, 100))");
+  if (sectors < 4 || sectors > 64) bad("sectors (must be in [4, 64])");
+  if (!(behind_half_angle_rad >= 0 && behind_half_angle_rad < std::numbers::pi / 2)) bad("behind_half_angle_rad");
+  if (!(step_mm > 0 && step_mm < 100)) bad("step_mm");
+}
+
+double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, double s_to,
+                  double dynamic_range_db, const TubeCheckOptions& o) {
+  Eigen::Vector3d u, w;
+  PlaneBasis(axis.direction, u, w);
+  auto amplitude = [&](double display) { return std::pow(10.0, display / 255.0 * dynamic_range_db / 20.0); };
+  auto sample0 = [&](const Eigen::Vector3d& p) {
+    const double x = v.Sample(p);
+    return std::isnan(x) ? 0.0 : x;
+  };
+  std::vector<double> per_section;
+  constexpr int kRadial = 3;
+  constexpr double kArcStepMm = 0.25;
+  for (double s = s_from; s <= s_to; s += o.step_mm) {
+    const Eigen::Vector3d c = axis.point + s * axis.direction;
+    const double centre = v.Sample(c);
+    if (std::isnan(centre)) continue;
+    const Eigen::Vector3d b = BeamDirectionAt(v, c);
+    Eigen::Vector3d behind = b - b.dot(axis.direction) * axis.direction;
+    const bool has_behind = behind.norm() > 1e-6;
+    if (has_behind) behind.normalize();
+    double core = centre;
+    for (int k = 0; k < 8; ++k) {
+      const double a = k * std::numbers::pi / 4;
+      for (double r : {0.5 * o.core_radius_mm, o.core_radius_mm})
+        core = std::max(core, sample0(c + r * (std::cos(a) * u + std::sin(a) * w)));
+    }
+    double surround = 0;
+    for (int k = 0; k < o.sectors; ++k) {
+      const double a = (k + 0.5) * 2 * std::numbers::pi / o.sectors;
+      const Eigen::Vector3d dir = std::cos(a) * u + std::sin(a) * w;
+      const Eigen::Vector3d tangent = -std::sin(a) * u + std::cos(a) * w;
+      if (has_behind && std::acos(std::clamp(dir.dot(behind), -1.0, 1.0)) < o.behind_half_angle_rad) continue;
+      // Per radius, the brightest sample across the sector's arc (a thin surface at any angle
+      // within the sector registers); the sector's value is the median over radii (one
+      // speckle spike does not make a sector bright).
+      std::array<double, kRadial> at_r{};
+      for (int q = 0; q < kRadial; ++q) {
+        const double r = o.ring_inner_mm + (o.ring_outer_mm - o.ring_inner_mm) * q / (kRadial - 1);
+        const double half_arc = r * std::tan(std::numbers::pi / o.sectors);
+        double m = 0;
+        for (double t = -half_arc; t <= half_arc + 1e-9; t += kArcStepMm)
+          m = std::max(m, sample0(c + r * dir + t * tangent));
+        at_r[static_cast<std::size_t>(q)] = m;
+      }
+      std::sort(at_r.begin(), at_r.end());
+      surround = std::max(surround, at_r[kRadial / 2]);
+    }
+    per_section.push_back(std::clamp(1.0 - amplitude(surround) / amplitude(core), 0.0, 1.0));
+  }
+  if (per_section.empty()) return 0.0;
+  auto mid = per_section.begin() + static_cast<long>(per_section.size() / 2);
+  std::nth_element(per_section.begin(), mid, per_section.end());
+  return *mid;
+}
+
+}  // namespace echoservo::tracking
