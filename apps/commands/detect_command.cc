@@ -2,7 +2,7 @@
 // and target of every frame of a volume file or PLUS sequence (tracking/radon_detector.h),
 // in mm in each volume's image (physical) frame. Output:
 //   {"frames": [{"found", "axis_point": [x,y,z], "axis_direction", "tip", "target",
-//                "confidence", "time_ms"}]}
+//                "confidence", "tubularity", "tracked", "time_ms"}]}
 // (axis/tip/target are null when not found; target is null when no tissue lies ahead).
 #include <CLI/CLI.hpp>
 
@@ -32,9 +32,25 @@ void AddDetectCommand(CLI::App& app) {
   cmd->add_option("FILE", *file, "volume or sequence file")->required();
   cmd->add_flag("--json", *json, "print JSON instead of text");
   cmd->add_flag("--track", *track, "search near the previous frame's axis (full search when lost)");
-  cmd->callback([file, json, track] {
+  auto options = std::make_shared<tracking::RadonDetectorOptions>();
+  cmd->add_option("--sheath-diameter", options->fit.sheath_diameter_mm,
+                  "outer diameter of the catheter sheath, mm (0: the echoes are the axis)")
+      ->check(CLI::Range(0.0, 20.0))
+      ->capture_default_str();
+  cmd->add_option("--wire-diameter", options->fit.wire_diameter_mm,
+                  "outer diameter of the guidewire, mm (at most the sheath's)")
+      ->check(CLI::Range(0.0, 20.0))
+      ->capture_default_str();
+  cmd->add_option("--dynamic-range", options->edge.dynamic_range_db,
+                  "the scanner's display dynamic range, dB (0-255 spans it)")
+      ->check(CLI::Range(1.0, 120.0))
+      ->capture_default_str();
+  cmd->add_option("--min-confidence", options->min_confidence, "below: not found")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  cmd->callback([file, json, track, options] {
+    tracking::RadonDetector detector(*options);  // validates the combination (wire ≤ sheath)
     auto source = imaging::OpenRecording(*file);
-    tracking::RadonDetector detector;
     nlohmann::json frames = nlohmann::json::array();
     while (auto frame = source->Next()) {
       const auto t0 = std::chrono::steady_clock::now();
@@ -56,6 +72,8 @@ void AddDetectCommand(CLI::App& app) {
       j["tip"] = d.found ? Vec3(d.tip_mm) : nlohmann::json(nullptr);
       j["target"] = d.found && d.target_found ? Vec3(d.target_mm) : nlohmann::json(nullptr);
       j["confidence"] = d.confidence;
+      j["tubularity"] = d.tubularity;
+      j["tracked"] = d.tracked;
       j["time_ms"] = ms;
       if (error) j["error"] = message;
       frames.push_back(j);
