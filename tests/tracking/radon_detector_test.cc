@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "imaging/io/volume_io.h"
+#include "imaging/sim/catheter_scene.h"
 #include "imaging/sim/simulated_scanner.h"
 #include "tracking/radon_detector.h"
 
@@ -29,17 +30,7 @@ struct Case {
 
 SimulatedScannerOptions Options(const Case& c) {
   SimulatedScannerOptions o;
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  t.linear() = (Eigen::AngleAxisd(c.yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
-                Eigen::AngleAxisd((90.0 - c.tilt_deg) * kDeg, Eigen::Vector3d::UnitY()))
-                   .toRotationMatrix();
-  const Eigen::Vector3d dir = t.linear().col(2);
-  t.translation() = Eigen::Vector3d(c.lateral_mm, 0, c.depth_mm) - 48.0 * dir;
-  o.catheter_pose.base_to_world = t;
-  o.catheter_pose.advance_mm = c.advance_mm;
-  Eigen::Isometry3d a = t;
-  a.translation() += (48.0 + 15.0) * dir;
-  o.annulus_to_world = a;
+  imaging::sim::PlaceCatheterScene({c.yaw_deg, c.tilt_deg, c.depth_mm, c.lateral_mm, c.advance_mm}, o);
   o.medium_sound_speed_m_s = c.sound_speed;
   o.reverberation = true;
   return o;
