@@ -1,5 +1,6 @@
 #include "apps/cli.h"
 
+#include "apps/commands/bench_commands.h"
 #include "apps/commands/imaging_commands.h"
 #include "apps/commands/lab_commands.h"
 
@@ -20,6 +21,7 @@ int RunCli(int argc, char** argv) {
   AddDetectCommand(app);
   AddRenderCommand(app);
   AddStreamCommands(app);
+  AddBenchCommands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,7 +1,11 @@
 #include "tracking/axis_profile.h"
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numbers>
 #include <vector>
@@ -11,30 +15,180 @@
 namespace echoservo::tracking {
 namespace {
 
-// Max of Sample() over a small disc ⟂ the axis at s.
-double ProfileAt(const imaging::Volume& v, const Line3& l, double s, const Eigen::Vector3d& u,
-                 const Eigen::Vector3d& w, double r) {
-  const Eigen::Vector3d c = l.point + s * l.direction;
-  double m = v.Sample(c);
-  if (std::isnan(m)) return m;
-  for (int k = 0; k < 8; ++k) {
-    const double a = k * std::numbers::pi / 4;
-    const double x = v.Sample(c + r * (std::cos(a) * u + std::sin(a) * w));
-    if (!std::isnan(x)) m = std::max(m, x);
+// Volume::Sample inlined: the same index arithmetic and corner sum (so the same values),
+// without a call and at()'s index math per corner — a profile takes thousands of samples.
+class Sampler {
+ public:
+  explicit Sampler(const imaging::Volume& v)
+      : dims_(v.dims()), origin_(v.origin_mm()),
+        to_index_(Eigen::Matrix3d(v.direction() * v.spacing_mm().asDiagonal()).inverse()),
+        voxels_(v.voxels().data()) {}
+
+  double operator()(const Eigen::Vector3d& p) const {
+    constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+    constexpr double tol = imaging::Volume::kInsideToleranceIndex;
+    const Eigen::Vector3d index = to_index_ * (p - origin_);
+    int base[3];
+    double frac[3];
+    for (int a = 0; a < 3; ++a) {
+      const double last = dims_[a] - 1;
+      if (!(index[a] >= -tol && index[a] <= last + tol)) return kNaN;
+      const double c = std::clamp(index[a], 0.0, last);
+      base[a] = std::max(0, std::min(static_cast<int>(std::floor(c)), dims_[a] - 2));
+      frac[a] = c - base[a];
+    }
+    const std::ptrdiff_t sx = dims_.x() > 1 ? 1 : 0, sy = dims_.y() > 1 ? dims_.x() : 0,
+                         sz = dims_.z() > 1 ? static_cast<std::ptrdiff_t>(dims_.x()) * dims_.y() : 0;
+    const std::uint8_t* b0 =
+        voxels_ + base[0] + static_cast<std::ptrdiff_t>(dims_.x()) * (base[1] + static_cast<std::ptrdiff_t>(dims_.y()) * base[2]);
+    double value = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const int dx = corner & 1, dy = (corner >> 1) & 1, dz = (corner >> 2) & 1;
+      const double w = (dx ? frac[0] : 1.0 - frac[0]) * (dy ? frac[1] : 1.0 - frac[1]) * (dz ? frac[2] : 1.0 - frac[2]);
+      if (w == 0.0) continue;
+      value += w * b0[dx * sx + dy * sy + dz * sz];
+    }
+    return value;
   }
-  return m;
+
+ private:
+  Eigen::Vector3i dims_;
+  Eigen::Vector3d origin_;
+  Eigen::Matrix3d to_index_;
+  const std::uint8_t* voxels_;
+};
+
+// Max (or mean) of the samples over a small disc ⟂ the axis (the centre and 8 points at
+// radius r, offsets computed once) at s. The max keeps a thin bright line bright under a
+// sub-voxel axis error; the mean averages speckle over a broad surface.
+class DiscProfile {
+ public:
+  enum class Reduce { kMax, kMean };
+  DiscProfile(const imaging::Volume& v, const Line3& l, const Eigen::Vector3d& u, const Eigen::Vector3d& w, double r,
+              Reduce reduce = Reduce::kMax)
+      : sample_(v), line_(l), reduce_(reduce) {
+    for (int k = 0; k < 8; ++k) {
+      const double a = k * std::numbers::pi / 4;
+      offsets_[static_cast<std::size_t>(k)] = r * (std::cos(a) * u + std::sin(a) * w);
+    }
+  }
+
+  double operator()(double s) const {
+    const Eigen::Vector3d c = line_.point + s * line_.direction;
+    double m = sample_(c);
+    if (std::isnan(m)) return m;
+    double sum = m;
+    int n = 1;
+    for (const auto& o : offsets_) {
+      const double x = sample_(c + o);
+      if (std::isnan(x)) continue;
+      m = std::max(m, x);
+      sum += x;
+      ++n;
+    }
+    return reduce_ == Reduce::kMax ? m : sum / n;
+  }
+
+ private:
+  Sampler sample_;
+  Line3 line_;
+  Reduce reduce_;
+  std::array<Eigen::Vector3d, 8> offsets_;
+};
+
+
+// The Gaussian envelope g(z) = exp(−z²/2) and its integral Φ(z), tabulated on z ∈ [−6, 6]
+// (linear interpolation, error < 1e-4): the surface fit below evaluates them ~10^4 times.
+class GaussianTables {
+ public:
+  GaussianTables() {
+    for (int i = 0; i < kSize; ++i) {
+      const double z = -kRange + i / kPerUnit;
+      g_[static_cast<std::size_t>(i)] = std::exp(-0.5 * z * z);
+      phi_[static_cast<std::size_t>(i)] = 0.5 * std::erfc(-z / std::numbers::sqrt2);
+    }
+  }
+  void operator()(double z, double& g, double& phi) const {
+    const double x = std::clamp((z + kRange) * kPerUnit, 0.0, kSize - 1.000001);
+    const int i = static_cast<int>(x);
+    const double f = x - i;
+    const auto k = static_cast<std::size_t>(i);
+    g = g_[k] + f * (g_[k + 1] - g_[k]);
+    phi = phi_[k] + f * (phi_[k + 1] - phi_[k]);
+  }
+
+ private:
+  static constexpr double kRange = 6.0, kPerUnit = 64.0;
+  static constexpr int kSize = static_cast<int>(2 * kRange * kPerUnit) + 1;
+  std::array<double, kSize> g_{}, phi_{};
+};
+
+// Squared residual of the best non-negative fit b + h·g + c·Φ (b free, h, c ≥ 0) to `amp`
+// for one surface position s0 (samples) and blur σ (samples); b, h, c in closed form for
+// each subset of the non-negative terms.
+double SurfaceFitResidual(const std::vector<double>& amp, double s0, double sigma) {
+  static const GaussianTables tables;
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  double btb = 0.0;
+  for (std::size_t k = 0; k < amp.size(); ++k) {
+    double g, phi;
+    tables((static_cast<double>(k) - s0) / sigma, g, phi);
+    const Eigen::Vector3d row(1.0, g, phi);
+    ata.selfadjointView<Eigen::Lower>().rankUpdate(row);
+    atb += row * amp[k];
+    btb += amp[k] * amp[k];
+  }
+  ata = ata.selfadjointView<Eigen::Lower>();
+  double best = std::numeric_limits<double>::infinity();
+  for (int mask = 1; mask <= 3; ++mask) {
+    Eigen::Matrix3d m = ata;
+    Eigen::Vector3d r = atb;
+    for (int c = 1; c <= 2; ++c)
+      if (!(mask & c)) {  // term unused: decouple it
+        m.row(c).setZero();
+        m.col(c).setZero();
+        m(c, c) = 1.0;
+        r[c] = 0.0;
+      }
+    const Eigen::Vector3d x = m.ldlt().solve(r);
+    if (x[1] < 0.0 || x[2] < 0.0) continue;
+    best = std::min(best, btb - 2.0 * x.dot(atb) + x.dot(ata * x));
+  }
+  return best;
 }
 
-// Log-compressed display value (0–255 over `dynamic_range_db`) → echo amplitude (relative).
-double Amplitude(double display, double dynamic_range_db) {
-  return std::pow(10.0, display / 255.0 * dynamic_range_db / 20.0);
+// Surface position (in samples of `amp`) from an amplitude profile across a tissue surface:
+// the least-squares fit of b + h·g((s − s0)/σ) + c·Φ((s − s0)/σ) — background, the
+// interface's echo (the pulse envelope g) and the tissue's backscatter from the surface on
+// (Φ, the envelope's integral) — over s0 and σ ∈ [0.15, 1.0] mm: a 0.125 mm × 0.1 mm grid,
+// then a 0.0125 mm × 0.025 mm grid around its best.
+double FitSurfaceEcho(const std::vector<double>& amp, double ds) {
+  const double n = static_cast<double>(amp.size());
+  double best_err = std::numeric_limits<double>::infinity(), best_s0 = 0.0, best_sigma_mm = 0.3;
+  auto search = [&](double s0_lo, double s0_hi, double s0_step, double sg_lo, double sg_hi, double sg_step) {
+    for (double sigma_mm = sg_lo; sigma_mm <= sg_hi + 1e-9; sigma_mm += sg_step)
+      for (double s0 = s0_lo; s0 <= s0_hi + 1e-9; s0 += s0_step) {
+        const double err = SurfaceFitResidual(amp, s0, sigma_mm / ds);
+        if (err < best_err) { best_err = err; best_s0 = s0; best_sigma_mm = sigma_mm; }
+      }
+  };
+  search(0.0, n - 1, 0.125 / ds, 0.15, 1.0, 0.1);
+  const double s0 = best_s0, sg = best_sigma_mm;
+  search(std::max(0.0, s0 - 0.125 / ds), std::min(n - 1, s0 + 0.125 / ds), 0.0125 / ds,
+         std::max(0.1, sg - 0.1), sg + 0.1, 0.025);
+  return best_s0;
 }
 
 }  // namespace
 
+double EchoAmplitude(double display, double dynamic_range_db) {
+  return std::pow(10.0, display / 255.0 * dynamic_range_db / 20.0);
+}
+
 TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, const EdgeOptions& edge) {
   const double tip_fraction = edge.edge_fraction;
-  auto A = [&](double x) { return Amplitude(x, edge.dynamic_range_db); };
+  auto A = [&](double x) { return EchoAmplitude(x, edge.dynamic_range_db); };
   TipEstimate out;
   Line3 line = axis;
   // Intensity profile along the axis.
@@ -45,9 +199,10 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, cons
   const double s_c = line.Parameter(box.center());
   const double ds = 0.25;
   std::vector<double> s_val, prof;
+  const DiscProfile profile(v, line, u, w, 0.6);
   for (double s = s_c - ext; s <= s_c + ext; s += ds) {
     s_val.push_back(s);
-    prof.push_back(ProfileAt(v, line, s, u, w, 0.6));
+    prof.push_back(profile(s));
   }
   const int N = static_cast<int>(prof.size());
   // Smooth (1 mm box) ignoring NaN; zero (outside the scan) counts as invalid too.
@@ -129,7 +284,7 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, cons
 
 TargetEstimate FindTarget(const imaging::Volume& v, const TipEstimate& tip, double bg,
                           const EdgeOptions& edge) {
-  auto A = [&](double x) { return Amplitude(x, edge.dynamic_range_db); };
+  auto A = [&](double x) { return EchoAmplitude(x, edge.dynamic_range_db); };
   TargetEstimate out;
   const Line3 line = tip.axis;
   const double level = tip.line_level;
@@ -141,52 +296,59 @@ TargetEstimate FindTarget(const imaging::Volume& v, const TipEstimate& tip, doub
     const Line3 fwd{tip.tip_mm, line.direction};
     Eigen::Vector3d fu, fw;
     PlaneBasis(fwd.direction, fu, fw);
+    // Mean over a 0.75 mm disc: the tissue ahead is a broad surface, and averaging nine
+    // samples of its speckle steadies the profile where a max would chase speckle peaks.
+    const DiscProfile profile(v, fwd, fu, fw, 0.75, DiscProfile::Reduce::kMean);
     for (double s = 0; s <= ext * 2; s += ds) {
-      const double x = ProfileAt(v, fwd, s, fu, fw, 0.75);
+      const double x = profile(s);
       if (std::isnan(x)) break;
       fp.push_back(x);
     }
     const int M = static_cast<int>(fp.size());
+    // 0.75 mm box: shorter than the echo of an interface (a pulse's envelope), longer than
+    // one speckle grain's sampling.
     std::vector<double> fs(static_cast<std::size_t>(M), 0);
     for (int i = 0; i < M; ++i) {
       double sum = 0;
       int n = 0;
-      for (int t = -2; t <= 2; ++t)
+      for (int t = -1; t <= 1; ++t)
         if (i + t >= 0 && i + t < M) { sum += fp[static_cast<std::size_t>(i + t)]; ++n; }
       fs[static_cast<std::size_t>(i)] = sum / n;
     }
+    auto at = [&](int i) { return fs[static_cast<std::size_t>(i)]; };
     const int start = static_cast<int>(2.0 / ds);
-    // Background just past the tip gap.
-    // Background just past the tip gap: median over the next 4 mm.
-    double fbg = bg;
+    // Background just past the tip gap: median and spread (MAD) over the next 4 mm. Blood
+    // (or a tank's water) scatters too; its speckle must not pass for the surface.
+    double fbg = bg, spread = 0.0;
     {
       std::vector<double> near;
-      for (int i = start; i < std::min(M, start + static_cast<int>(4.0 / ds)); ++i) near.push_back(fs[static_cast<std::size_t>(i)]);
+      for (int i = start; i < std::min(M, start + static_cast<int>(4.0 / ds)); ++i) near.push_back(at(i));
       if (!near.empty()) {
-        std::nth_element(near.begin(), near.begin() + static_cast<long>(near.size() / 2), near.end());
-        fbg = near[near.size() / 2];
+        const auto mid = near.begin() + static_cast<long>(near.size() / 2);
+        std::nth_element(near.begin(), mid, near.end());
+        fbg = *mid;
+        for (double& x : near) x = std::abs(x - fbg);
+        std::nth_element(near.begin(), mid, near.end());
+        spread = 1.4826 * *mid;
       }
     }
-    const double rise = std::max(12.0, 0.1 * (level - bg));
+    const double rise = std::max({12.0, 0.1 * (level - bg), 5.0 * spread});
     for (int i = start; i < M; ++i) {
-      if (fs[static_cast<std::size_t>(i)] > fbg + rise) {
-        // Peak of the rise within the next 3 mm, then the half-maximum crossing backwards.
-        int pk = i;
-        for (int t = i; t < std::min(M, i + static_cast<int>(3.0 / ds)); ++t)
-          if (fs[static_cast<std::size_t>(t)] > fs[static_cast<std::size_t>(pk)]) pk = t;
-        // An interface images as the point-spread function centred on it: the target is the
-        // peak of the first echo (parabolic sub-sample refinement in amplitude).
-        double s = pk * ds;
-        if (pk > 0 && pk + 1 < M) {
-          const double y0 = A(fs[static_cast<std::size_t>(pk - 1)]), y1 = A(fs[static_cast<std::size_t>(pk)]),
-                       y2 = A(fs[static_cast<std::size_t>(pk + 1)]);
-          const double den = y0 - 2 * y1 + y2;
-          if (den < 0) s += ds * std::clamp(0.5 * (y0 - y2) / den, -0.5, 0.5);
-        }
-        out.found = true;
-        out.target_mm = tip.tip_mm + s * line.direction;
-        break;
-      }
+      if (at(i) <= fbg + rise) continue;
+      // The tissue surface images as the pulse envelope centred on it plus the tissue's own
+      // backscatter from the surface on, both blurred by the point-spread function: fit
+      // that model around the rise (FitSurfaceEcho) for the surface's position.
+      // The rise began where the profile last left the background (a speckled surface can
+      // cross the threshold a little inside it).
+      int onset = i;
+      while (onset > start && at(onset - 1) > fbg + 0.5 * rise) --onset;
+      std::vector<double> amp;
+      const int i0 = std::max(0, onset - static_cast<int>(1.5 / ds)), i1 = std::min(M - 1, onset + static_cast<int>(2.5 / ds));
+      for (int k = i0; k <= i1; ++k) amp.push_back(A(fp[static_cast<std::size_t>(k)]));
+      const double s = (i0 + FitSurfaceEcho(amp, ds)) * ds;
+      out.found = true;
+      out.target_mm = tip.tip_mm + s * line.direction;
+      break;
     }
   }
 

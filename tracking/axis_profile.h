@@ -5,9 +5,13 @@
 // background + 30 % of the profile's 90th percentile, gaps ≤ 2 mm) is the catheter; its end
 // nearer the edge of the scanned region is where it enters, the other end is the tip, placed
 // where the profile drops below background + `tip_fraction` of its level over the last 3 mm.
-// Target: forward from 2 mm beyond the tip, the first rise of the profile (disc radius
-// 1.5 mm) above its local background, followed to its peak; the target is the half-maximum
-// crossing before that peak — the tissue surface the catheter points at.
+// Target: forward from 2 mm beyond the tip, the profile is the mean over a 0.75 mm disc.
+// Its first rise above the local background (median of the next 4 mm) by max(12, 10 % of
+// the line level, 5 × the background's robust spread — blood speckles too) marks tissue; the
+// surface is then located by a least-squares fit, in echo amplitude, of background + the
+// interface's echo (the pulse envelope) + the tissue's backscatter from the surface on (the
+// envelope's integral), with the blur fitted too: a bright tissue interior makes the first
+// echo's peak — and a thick tissue's far wall — useless as the surface.
 //
 // Units: mm in the volume's image frame.
 #pragma once
@@ -23,6 +27,10 @@ namespace echoservo::tracking {
 // values, 0–255 over the scanner's dynamic range, and a blurred step's half-amplitude point
 // (where a symmetric point-spread function puts the true edge) is far from its half-display
 // point. 
+// Log-compressed display value (0–255 spanning `dynamic_range_db`) → echo amplitude, relative
+// to the amplitude displayed as 0.
+double EchoAmplitude(double display, double dynamic_range_db);
+
 struct EdgeOptions {
   double dynamic_range_db = 50.0;  // the scanner's display dynamic range, (0, 120]
   double edge_fraction = 0.5;      // edge at this fraction between background and level, (0, 1)

@@ -9,8 +9,10 @@
 //
 // The fit: (1) the first echoes near the search line (voxels with no brighter voxel up to
 // `first_echo_mm` nearer the transducer along the beam: comet tails and the far wall lie
-// behind) are gathered, weighted by (value − background)², and a TLS line is fitted to them
-// in shrinking cylinders; (2) each echo is moved onto the axis by r(s) along its n, with
+// behind) above a threshold `echo_level_fraction` of the way from the background to the
+// catheter's echo level (the 99th percentile of the voxels near the line: speckle fills the
+// rest) are gathered, weighted by (value − threshold)², and a TLS line is fitted to them in
+// shrinking cylinders; (2) each echo is moved onto the axis by r(s) along its n, with
 // r(s) = R on the sheath side and ρ on the wire side of a breakpoint s_b, and the axis is
 // the TLS line of the moved points; s_b and the side the wire is on are chosen by the least
 // weighted residual (both sides, s_b every 0.25 mm). The final axis is the TLS line of the
@@ -40,6 +42,8 @@ struct EchoAxisFitOptions {
   double wire_diameter_mm = 0.9;    // outer diameter of the guidewire, ≤ sheath_diameter_mm
   // The axis comes from the sheath's echoes alone when they span at least this much.
   double min_sheath_span_mm = 10.0;
+  // Echo threshold between the background (0) and the catheter's echo level (→ 1).
+  double echo_level_fraction = 0.6;
 
   // Throws std::invalid_argument naming the field.
   void Validate() const;

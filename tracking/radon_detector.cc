@@ -10,6 +10,8 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <numeric>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -17,29 +19,54 @@
 namespace echoservo::tracking {
 namespace {
 
-double MedianNonZero(const imaging::Volume& v) {
-  std::array<std::int64_t, 256> h{};
-  for (auto x : v.voxels()) ++h[x];
-  std::int64_t n = 0;
-  for (int i = 1; i < 256; ++i) n += h[static_cast<std::size_t>(i)];
-  if (n == 0) return 0.0;
-  std::int64_t acc = 0;
-  for (int i = 1; i < 256; ++i) {
-    acc += h[static_cast<std::size_t>(i)];
-    if (2 * acc >= n) return i;
-  }
-  return 255.0;
-}
-
-double RobustZ(std::vector<double> sc, double score) {
-  if (sc.empty()) return 0.0;
+// Median and MAD of line scores into scene.score_median / score_mad; false when empty.
+bool SetScoreStats(std::vector<double> sc, SceneBaseline& scene) {
+  if (sc.empty()) return false;
   auto mid = sc.begin() + static_cast<long>(sc.size() / 2);
   std::nth_element(sc.begin(), mid, sc.end());
-  const double med = *mid;
-  for (auto& x : sc) x = std::abs(x - med);
+  scene.score_median = *mid;
+  for (auto& x : sc) x = std::abs(x - scene.score_median);
   std::nth_element(sc.begin(), mid, sc.end());
-  const double mad = 1.4826 * (*mid);
-  return (score - med) / (mad + 1e-3 * score + 1e-12);
+  scene.score_mad = *mid;
+  return true;
+}
+
+// Robust z-score of `score` among the scene's line scores.
+double RobustZ(const SceneBaseline& scene, double score) {
+  return (score - scene.score_median) / (1.4826 * scene.score_mad + 1e-3 * score + 1e-12);
+}
+
+// The search's two Radon levels, and the whole volume's coarse grid when it was pooled.
+struct SearchLevels {
+  std::optional<PooledGrid> coarse_grid;
+  RadonLevel coarse, fine;
+};
+
+// Levels measured on `v`, the scene's intensity levels with them. The volume is read once:
+// the fine grid, pooled again, is the coarse grid (max of maxima).
+SearchLevels MeasuredLevels(const imaging::Volume& v, const RadonDetectorOptions& o, const RadonWindow* roi,
+                            SceneBaseline& scene) {
+  const int f1 = o.coarse_factor, f2 = std::max(1, f1 / 2);
+  scene.voxel_background = MedianNonZeroVoxel(v);
+  const PooledGrid fine_grid = MaxPool(v, f2);
+  SearchLevels L;
+  L.coarse_grid = f1 % f2 == 0 ? MaxPool(fine_grid, f1 / f2) : MaxPool(v, f1);
+  scene.coarse = GridThresholds(*L.coarse_grid, o.level_min_contrast);
+  scene.fine = GridThresholds(fine_grid, o.level_min_contrast);
+  L.coarse = MakeRadonLevel(v, *L.coarse_grid, o.max_depth_fraction, roi, scene.coarse);
+  L.fine = MakeRadonLevel(v, fine_grid, o.max_depth_fraction, roi, scene.fine);
+  return L;
+}
+
+// Levels of the tracking region alone, with the scene's known intensity levels: only the
+// voxels near the previous axis are read.
+SearchLevels TrackingLevels(const imaging::Volume& v, const RadonDetectorOptions& o, const RadonWindow& roi,
+                            const SceneBaseline& scene) {
+  const int f1 = o.coarse_factor, f2 = std::max(1, f1 / 2);
+  SearchLevels L;
+  L.coarse = MakeRadonLevel(v, MaxPool(v, f1, roi), o.max_depth_fraction, &roi, scene.coarse);
+  L.fine = MakeRadonLevel(v, MaxPool(v, f2, roi), o.max_depth_fraction, &roi, scene.fine);
+  return L;
 }
 
 }  // namespace
@@ -60,6 +87,9 @@ void RadonDetectorOptions::Validate() const {
   if (!(tracking_window_mm > 0 && std::isfinite(tracking_window_mm))) bad("tracking_window_mm");
   if (!(max_depth_fraction > 0 && max_depth_fraction <= 1)) bad("max_depth_fraction");
   if (!(max_spacing_ratio >= 1 && std::isfinite(max_spacing_ratio))) bad("max_spacing_ratio");
+  if (!(level_min_contrast >= 0 && level_min_contrast < 1)) bad("level_min_contrast");
+  if (max_candidates < 1 || max_candidates > 16) bad("max_candidates");
+  if (!(candidate_separation_rad > 0 && candidate_separation_rad < 1.6)) bad("candidate_separation_rad");
 }
 
 RadonDetector::RadonDetector(RadonDetectorOptions options) : options_(std::move(options)) {
@@ -67,34 +97,54 @@ RadonDetector::RadonDetector(RadonDetectorOptions options) : options_(std::move(
 }
 
 CatheterDetection RadonDetector::Detect(const imaging::Volume& volume) const {
-  return Run(volume, nullptr);
+  return Run(volume, nullptr, nullptr);
 }
 
 CatheterDetection RadonDetector::Detect(const imaging::Volume& volume, const Line3& previous) const {
-  auto r = Run(volume, &previous);
+  auto r = Run(volume, &previous, nullptr);
   if (r.found && r.confidence >= options_.min_confidence) return r;
-  return Run(volume, nullptr);
+  return Run(volume, nullptr, nullptr);
+}
+
+CatheterDetection RadonDetector::Detect(const imaging::Volume& volume, const CatheterDetection& previous) const {
+  if (!previous.found) return Run(volume, nullptr, nullptr);
+  auto r = Run(volume, &previous.axis, &previous.baseline);
+  if (r.found && r.confidence >= options_.min_confidence) return r;
+  return Run(volume, nullptr, nullptr);
 }
 
 CatheterDetection RadonDetector::Track(const imaging::Volume& volume) {
   auto r = previous_ ? Detect(volume, *previous_) : Detect(volume);
-  if (r.found) previous_ = r.axis; else previous_.reset();
+  if (r.found) previous_ = r; else previous_.reset();
   return r;
 }
 
-CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* previous) const {
+CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* previous,
+                                     const SceneBaseline* known) const {
   CatheterDetection out;
   const Eigen::Vector3d sp = v.spacing_mm();
   if (sp.maxCoeff() > options_.max_spacing_ratio * sp.minCoeff())
     throw std::invalid_argument("RadonDetector: voxel spacing too anisotropic (max/min > " +
                                 std::to_string(options_.max_spacing_ratio) + ")");
   if (v.dims().minCoeff() < 8) return out;
-  const double bg = MedianNonZero(v);
 
-  const int f1 = options_.coarse_factor, f2 = std::max(1, f1 / 2);
-  const RadonLevel L1 = MakeRadonLevel(v, f1, options_.max_depth_fraction);
+  // Tracking searches lines near the previous axis only, so the levels keep the cells of a
+  // cylinder around it: the offset window, plus the ring (2 coarse bins) and the bilinear
+  // footprint (1 bin) of a peak at the window's edge, plus a bin for the cone's tilt.
+  std::optional<RadonWindow> roi;
+  if (previous)
+    roi = RadonWindow{Line3{previous->point, previous->direction.normalized()},
+                      options_.tracking_window_mm + 4 * options_.coarse_factor * std::cbrt(sp.prod())};
+  // A tracked frame reuses the scene's statistics of the frame it started from (only the
+  // tracking region is read); otherwise they are measured on this volume.
+  SceneBaseline scene = known && known->valid ? *known : SceneBaseline{};
+  const SearchLevels levels = scene.valid && roi ? TrackingLevels(v, options_, *roi, scene)
+                                                 : MeasuredLevels(v, options_, roi ? &*roi : nullptr, scene);
+  out.baseline = scene;
+  const double bg = scene.voxel_background;
+  const RadonLevel& L1 = levels.coarse;
+  const RadonLevel& L2 = levels.fine;
   if (L1.cells.size() < 4) return out;
-  const RadonLevel L2 = MakeRadonLevel(v, f2, options_.max_depth_fraction);
 
   RadonSearchResult b;
   RadonWindow window_storage;
@@ -105,15 +155,76 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
     Eigen::Vector3d pd = previous->direction;
     if (pd.z() < 0) pd = -pd;
     const int steps = std::max(3, static_cast<int>(std::ceil(2 * options_.tracking_cone_rad / 0.03)) | 1);
-    b = SearchDirections(L1, DirectionCone(pd, options_.tracking_cone_rad, steps), window);
+    // Coarse to fine over the cone's grid too (a checkerboard, then the rest next to its best
+    // directions): only the best line is used here.
+    const double spacing_rad = 2 * options_.tracking_cone_rad / (steps - 1);
+    b = SearchDirectionsCoarseToFine(L1, DirectionCone(pd, options_.tracking_cone_rad, steps),
+                                     CoarseToFineOptions{2, 8, 1.5 * spacing_rad}, window);
   } else {
-    b = SearchDirections(L1, FibonacciHemisphere(options_.coarse_directions), nullptr);
+    // Coarse to fine over the hemisphere: every other direction, then the rest near the best
+    // of those (the same best line at ~60 % of the cost; the z-score's baseline is the first
+    // stage's scores, a uniform half of the hemisphere's).
+    b = SearchDirectionsCoarseToFine(L1, FibonacciHemisphere(options_.coarse_directions));
   }
   if (b.peak.score <= 0) return out;
+  // The distribution of line scores over the hemisphere, unless known: a full search's own
+  // scores, or, when tracking, a sparse set on the whole coarse level (the cone's
+  // directions all see the line, and the tracking region holds little else).
+  if (!scene.valid) {
+    const bool have_scores =
+        previous ? SetScoreStats(SearchDirections(MakeRadonLevel(v, *levels.coarse_grid, options_.max_depth_fraction,
+                                                                 nullptr, scene.coarse),
+                                                  FibonacciHemisphere(std::max(16, options_.coarse_directions / 8)),
+                                                  nullptr)
+                                     .scores,
+                                 scene)
+                 : SetScoreStats(b.scores, scene);
+    scene.valid = have_scores;
+  }
+  out.baseline = scene;
+  // The best line first; when it is not a catheter (a line within a surface fails the tube
+  // check) a full search tries the runners-up: the best first-stage directions at least
+  // `candidate_separation_rad` from every direction tried, scoring at least half the best.
+  CatheterDetection best = out;
+  std::vector<Eigen::Vector3d> tried;
+  const double cos_sep = std::cos(options_.candidate_separation_rad);
+  std::vector<std::size_t> order(b.scores.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return b.scores[x] > b.scores[y]; });
+  std::size_t next = 0;
+  for (int c = 0; c < (previous ? 1 : options_.max_candidates); ++c) {
+    Eigen::Vector3d dir = b.direction;
+    RadonPeak peak = b.peak;
+    if (c > 0) {
+      while (next < order.size() && b.scores[order[next]] >= 0.5 * b.peak.score &&
+             std::any_of(tried.begin(), tried.end(), [&](const Eigen::Vector3d& t) {
+               return std::abs(t.dot(b.directions[order[next]])) >= cos_sep;
+             }))
+        ++next;
+      if (next >= order.size() || b.scores[order[next]] < 0.5 * b.peak.score) break;
+      dir = b.directions[order[next]];
+      peak = b.peaks[order[next]];
+    }
+    tried.push_back(dir);
+    CatheterDetection d = EvaluateLine(v, L1, L2, dir, peak, window, bg, scene);
+    d.tracked = previous != nullptr;
+    if (d.found) return d;
+    if (c == 0 || d.confidence > best.confidence) best = d;
+  }
+  return best;
+}
+
+CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const RadonLevel& L1, const RadonLevel& L2,
+                                              const Eigen::Vector3d& direction, const RadonPeak& coarse_peak,
+                                              const RadonWindow* window, double bg, const SceneBaseline& scene) const {
+  CatheterDetection out;
+  out.baseline = scene;
   // Refine at the finer level, near the coarse line.
-  RadonWindow near{PeakLine(L1, b.direction, b.peak), 2 * L1.bin_mm};
+  RadonWindow near{PeakLine(L1, direction, coarse_peak), 2 * L1.bin_mm};
   double cone = options_.fine_cone_rad;
-  RadonSearchResult f = b;
+  RadonSearchResult f;
+  f.direction = direction;
+  f.peak = coarse_peak;
   for (int pass = 0; pass < 2; ++pass) {
     RadonSearchResult g = SearchDirections(L2, DirectionCone(f.direction, cone, options_.fine_steps), &near);
     if (g.peak.score > 0) {
@@ -122,21 +233,23 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
     }
     cone /= (options_.fine_steps - 1) / 2.0;
   }
-  // Shallowest strong line among the parallel candidates of the best direction.
-  auto peaks = RadonPeaks(L2, f.direction, window, true);
+  // Nearest the transducer among the strong parallel lines of the best direction: comet
+  // tails (reverberation) lie behind the catheter along the beam, so farther from the probe
+  // apex (Volume::image_to_probe; the image origin when the volume has no probe pose).
+  auto peaks = RadonPeaks(L2, f.direction, window, false);
   if (peaks.empty()) return out;
-  // The distribution of line scores over the hemisphere (a sparse set when tracking: the
-  // cone's directions all see the line).
-  const double z_score =
-      RobustZ(previous ? SearchDirections(L1, FibonacciHemisphere(std::max(16, options_.coarse_directions / 8)),
-                                          nullptr).scores
-                       : b.scores,
-              b.peak.score);
+  const double z_score = scene.valid ? RobustZ(scene, coarse_peak.score) : 0.0;
+  const Eigen::Vector3d apex = v.image_to_probe().inverse().translation();
   Line3 line = PeakLine(L2, f.direction, peaks.front());
+  double range = PointToLineDistance(line, apex);
   for (const auto& p : peaks) {
     if (p.score < 0.6 * peaks.front().score) break;
     const Line3 cand = PeakLine(L2, f.direction, p);
-    if (cand.point.z() < line.point.z() - 1.0 && std::abs(cand.point.z() - line.point.z()) < 15.0) line = cand;
+    const double r = PointToLineDistance(cand, apex);
+    if (r < range - 1.0 && range - r < 15.0) {
+      line = cand;
+      range = r;
+    }
   }
 
   const auto fit = FitEchoAxis(v, line, bg, options_.fit);
@@ -154,12 +267,14 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
                               out.axis.Parameter(out.tip_mm), options_.edge.dynamic_range_db, options_.tube);
 
   // Confidence: Radon peak contrast (robust z among the directions' best lines), length, and
-  // the line's tube shape (a line within a surface is not a catheter).
-  const double c_peak = 1.0 - std::exp(-std::max(0.0, z_score - 10.0) / 8.0);
+  // the line's tube shape (a line within a surface is not a catheter). The peak's contrast
+  // only needs to be clear (z ≥ 5): in a volume full of bright tissue the other directions'
+  // best lines are bright too (a catheter beside tissue has z 9–13 where one in water has
+  // 20–35), while the tube check is what tells a catheter from a line within tissue.
+  const double c_peak = 1.0 - std::exp(-std::max(0.0, z_score - 5.0) / 4.0);
   const double c_len = std::clamp(out.line_length_mm / (2.0 * std::max(1e-9, options_.min_line_length_mm)), 0.0, 1.0);
   const double c_tube = std::clamp((out.tubularity - 0.2) / 0.5, 0.0, 1.0);
   out.confidence = std::clamp(c_peak * c_len * c_tube, 0.0, 1.0);
-  out.tracked = previous != nullptr;
   out.found = out.confidence >= options_.min_confidence && out.line_length_mm >= options_.min_line_length_mm;
   out.peak_z = z_score;
   return out;

@@ -4,23 +4,29 @@
 // intensity in a 2D histogram gives the line integrals of the volume along all lines
 // parallel to d: the Radon (X-ray) transform for d. A straight bright catheter is a sharp
 // peak of that histogram for d = its axis. The detector:
-//   1. max-pools the volume ×4 (and ×2), subtracts the median (background) level;
-//   2. ×4 level: scores a Fibonacci hemisphere of directions (TBB-parallel), each by its
-//      best histogram peak's contrast against the ring around it (a line is a point in the
-//      projection, a tissue surface seen edge-on a ridge: the ring's 2nd-highest sample is
-//      subtracted, which cancels ridges but not one-sided reverberation tails);
+//   1. max-pools the volume ×2 (and that ×2 again), keeps the cells clearly above the
+//      median (background) level (faint speckle adds little and costs much);
+//   2. ×4 level: scores a Fibonacci hemisphere of directions (TBB-parallel; every other
+//      direction, then the rest near the best of those), each by its best histogram peak's
+//      contrast against the ring around it (a line is a point in the projection, a tissue
+//      surface seen edge-on a ridge: the ring's 2nd-highest sample is subtracted, which
+//      cancels ridges but not one-sided reverberation tails);
 //   3. refines the direction on a finer local grid at the ×2 level; among near-equal peaks
-//      of that direction (parallel lines: reverberation comets deeper along the beam) takes
-//      the shallowest (smallest image z);
-//   4. full resolution: intensity-weighted iteratively-reweighted (Tukey) TLS line fit of
-//      the voxels within a few mm of the line (tracking/line_fit.h FitLine);
+//      of that direction (parallel lines: reverberation comets lie behind the catheter along
+//      the beam) takes the one nearest the probe apex;
+//   4. full resolution: the near-wall tube model fit of the catheter's first echoes
+//      (tracking/echo_axis_fit.h);
 //   5. tip: end of the bright run of the intensity profile along the axis, the end away
-//      from where the line enters the volume; target: first tissue rise beyond the tip
-//      (half-maximum crossing), along the axis;
+//      from where the line enters the volume; target: the first tissue surface beyond the
+//      tip along the axis, from a fit of its echo and backscatter (tracking/axis_profile.h);
 //   6. confidence in [0, 1] from the peak's contrast against the distribution of the other
-//      directions' scores and from the bright run's length; below `min_confidence`: not found.
+//      directions' scores, the bright run's length and its tube shape
+//      (tracking/tube_check.h); below `min_confidence`: not found. A full search whose best
+//      line fails tries the next best directions (`max_candidates`).
 // Tracking: with a previous axis, only a cone of directions around it and an offset window
-// around it are searched; a full search follows when that gives a low confidence.
+// around it are searched, on the voxels of a cylinder around it; from a previous detection,
+// its scene statistics (background levels, the confidence's baseline) are reused, so the
+// rest of the volume is not read. A full search follows when that gives a low confidence.
 //
 // Units: mm, rad, in the volume's image (physical) frame (imaging/volume.h).
 #pragma once
@@ -32,6 +38,7 @@
 #include "tracking/axis_profile.h"
 #include "tracking/echo_axis_fit.h"
 #include "tracking/line_fit.h"
+#include "tracking/radon_transform.h"
 #include "tracking/tube_check.h"
 
 namespace echoservo::tracking {
@@ -54,9 +61,32 @@ struct RadonDetectorOptions {
   // the volume's depth are ignored: far-field walls (tank floor) make bright strips there.
   double max_depth_fraction = 1.0;
   double max_spacing_ratio = 4.0;     // larger max/min spacing ratio: std::invalid_argument
+  // The Radon levels keep only the cells brighter than their background by this fraction of
+  // the range up to their bright end (tracking/radon_transform.h MakeRadonLevel; 0: every
+  // cell above the background): faint speckle is most of a tissue volume's cells, costs a
+  // splat per cell and direction, and weighs little ((value − background)²).
+  double level_min_contrast = 0.125;
+  // A full search whose best line is not a catheter (tube check, length) tries up to this
+  // many directions in all, each at least candidate_separation_rad from those tried.
+  int max_candidates = 3;
+  double candidate_separation_rad = 0.35;  // ~20°
 
   // Throws std::invalid_argument naming the field.
   void Validate() const;
+};
+
+// What tracking reuses from the frame it started from (a full search): the scene's intensity
+// levels and the spread of line scores over the hemisphere (the confidence's baseline).
+// They describe the scene and the scanner's gain, change little from frame to frame, and
+// measuring them takes a pass over the whole volume and a search of the hemisphere — far
+// more than the rest of a tracked frame.
+struct SceneBaseline {
+  bool valid = false;
+  double voxel_background = 0.0;  // median non-zero voxel value
+  LevelThresholds coarse, fine;   // the Radon levels' (tracking/radon_transform.h)
+  // Median and median absolute deviation of the best line scores of the hemisphere's
+  // directions (coarse level).
+  double score_median = 0.0, score_mad = 0.0;
 };
 
 struct CatheterDetection {
@@ -70,6 +100,7 @@ struct CatheterDetection {
   bool tracked = false;                              // result of the tracking search
   double tubularity = 0.0;  // tracking/tube_check.h: ≈ 1 tube, ≈ 0 line within a surface
   double peak_z = 0.0;  // robust z-score of the Radon peak among its histogram's lines
+  SceneBaseline baseline;  // the statistics this result used (valid once the search ran)
 };
 
 class RadonDetector {
@@ -82,20 +113,30 @@ class RadonDetector {
   CatheterDetection Detect(const imaging::Volume& volume) const;
 
   // Searches near `previous` (tracking) and falls back to the full search when the
-  // tracked result's confidence is below min_confidence.
+  // tracked result's confidence is below min_confidence. The scene's statistics are measured
+  // on `volume` (a pass over all of it and a sparse hemisphere search).
   CatheterDetection Detect(const imaging::Volume& volume, const Line3& previous) const;
 
-  // Stateful tracking over a stream: uses the last found axis, full search otherwise.
+  // The same near previous.axis, reusing previous.baseline (when valid): only the region
+  // around the axis is read. A full search when `previous` was not found.
+  CatheterDetection Detect(const imaging::Volume& volume, const CatheterDetection& previous) const;
+
+  // Stateful tracking over a stream: from the last found detection, full search otherwise.
   CatheterDetection Track(const imaging::Volume& volume);
   void Reset() { previous_.reset(); }
 
   const RadonDetectorOptions& options() const { return options_; }
 
  private:
-  CatheterDetection Run(const imaging::Volume& volume, const Line3* previous) const;
+  CatheterDetection Run(const imaging::Volume& volume, const Line3* previous, const SceneBaseline* scene) const;
+  // Refines one coarse line (direction and peak) and judges it: axis fit, tip, target, tube
+  // check, confidence.
+  CatheterDetection EvaluateLine(const imaging::Volume& volume, const RadonLevel& coarse, const RadonLevel& fine,
+                                 const Eigen::Vector3d& direction, const RadonPeak& coarse_peak,
+                                 const RadonWindow* window, double background, const SceneBaseline& scene) const;
 
   RadonDetectorOptions options_;
-  std::optional<Line3> previous_;
+  std::optional<CatheterDetection> previous_;
 };
 
 }  // namespace echoservo::tracking

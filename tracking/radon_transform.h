@@ -2,8 +2,10 @@
 // strongest line over a set of directions: the search stage of the catheter detector.
 //
 // A volume is reduced to a level: voxels max-pooled by an integer factor, keeping the cells
-// brighter than the level's background (median of its non-zero cells), each weighted by
-// (value − background)², at their physical positions (mm, image frame). For a direction d
+// brighter than the level's background (median of its non-zero cells) — or than a contrast
+// threshold above it — each weighted by (value − background)², at their physical positions
+// (mm, image frame). Histograms are accumulated in float (relative rounding ~1e-7, far below
+// the bins' speckle), each direction in a per-thread scratch histogram. For a direction d
 // the cells are projected onto the plane ⟂ d and splatted bilinearly into a 2D histogram
 // with bins of the level's cell size: each bin is the line integral of the weights along one
 // line parallel to d. A straight bright line parallel to d is a point peak of that
@@ -14,6 +16,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -27,6 +31,12 @@ struct RadonCell {
   double weight;         // (value − background)², > 0
 };
 
+// Restricts peaks to lines within `radius_mm` of `line` (measured in the plane ⟂ d).
+struct RadonWindow {
+  Line3 line;
+  double radius_mm = 0.0;
+};
+
 // One resolution level of a volume.
 struct RadonLevel {
   std::vector<RadonCell> cells;
@@ -34,6 +44,7 @@ struct RadonLevel {
   Eigen::Vector3d centre_mm = Eigen::Vector3d::Zero();  // histogram origin
   double half_extent_mm = 1.0;                          // histogram half-width
   double background = 0.0;                              // median non-zero pooled value
+  double min_value = 0.0;  // the cells kept are brighter than this (≥ background)
   double max_depth_z_mm = 0.0;  // peaks whose line lies deeper (image z) are ignored
 };
 
@@ -42,16 +53,61 @@ struct RadonLevel {
 // extent are later ignored by RadonPeaks (1: none).
 RadonLevel MakeRadonLevel(const imaging::Volume& volume, int factor, double max_depth_fraction);
 
+// A volume max-pooled by an integer factor: cell (i, j, k) holds the maximum of the voxels
+// [f·i, f·i + f) × [f·j, f·j + f) × [f·k, f·k + f) (clipped at the far faces), stored x
+// fastest like Volume::voxels().
+struct PooledGrid {
+  int factor = 1;
+  Eigen::Vector3i dims = Eigen::Vector3i::Zero();
+  std::vector<std::uint8_t> values;
+  std::array<std::int64_t, 256> histogram{};  // of `values`
+};
+
+// Max-pools `volume` by `factor` (≥ 1), in parallel (TBB) over output slices.
+PooledGrid MaxPool(const imaging::Volume& volume, int factor);
+// Pools only the cells whose centres may lie within roi.radius_mm of roi.line (a superset of
+// those MakeRadonLevel keeps with the same `roi`); the others, and `histogram`, stay 0. The
+// tracking search reads a small part of the volume this way.
+PooledGrid MaxPool(const imaging::Volume& volume, int factor, const RadonWindow& roi);
+// Pools a pooled grid again by `factor` (≥ 1): the maximum of maxima, i.e. exactly the
+// volume pooled by grid.factor · factor (the blocks nest, also at the clipped far faces),
+// without reading the volume again.
+PooledGrid MaxPool(const PooledGrid& grid, int factor);
+
+// A level's background (the median of the grid's non-zero values) and the value its cells
+// must exceed.
+struct LevelThresholds {
+  double background = 0.0;
+  double min_value = 0.0;
+};
+
+// The thresholds of a whole pooled grid: `min_contrast` of the way from its background to its
+// bright end (the 99th percentile of its non-zero values) above the background.
+LevelThresholds GridThresholds(const PooledGrid& grid, double min_contrast);
+
+// The level of a pooled grid of `volume`: with the defaults, the same as
+// MakeRadonLevel(volume, grid.factor, max_depth_fraction). With `roi`, only cells whose
+// centre lies within roi->radius_mm of roi->line are kept — the tracking search's region —
+// while the background stays that of the whole grid, so the kept cells' weights do not
+// depend on the region. `min_contrast` > 0 keeps only the cells brighter than the
+// background by that fraction of the range up to the grid's bright end (GridThresholds):
+// speckle just above the median is most of a tissue volume's cells but, weighted by
+// (value − background)², a cell below 1/8 of the range weighs under 1/64 of a bright one.
+RadonLevel MakeRadonLevel(const imaging::Volume& volume, const PooledGrid& grid, double max_depth_fraction,
+                          const RadonWindow* roi = nullptr, double min_contrast = 0.0);
+// The same with given thresholds (e.g. those of an earlier frame, for a grid pooled only in
+// a region of interest).
+RadonLevel MakeRadonLevel(const imaging::Volume& volume, const PooledGrid& grid, double max_depth_fraction,
+                          const RadonWindow* roi, const LevelThresholds& thresholds);
+
+// Median of the non-zero voxels of `volume` (0 when all are zero): the volume's background
+// level. Parallel (TBB); runs of zero voxels are skipped 8 at a time.
+double MedianNonZeroVoxel(const imaging::Volume& volume);
+
 struct RadonPeak {
   double score = -1.0;      // contrast of the peak against its ring (weight units)
   double a_mm = 0, c_mm = 0;  // offset in the plane ⟂ d, from the level centre
   double z = 0.0;           // robust z-score among the histogram's bins (first peak only)
-};
-
-// Restricts peaks to lines within `radius_mm` of `line` (measured in the plane ⟂ d).
-struct RadonWindow {
-  Line3 line;
-  double radius_mm = 0.0;
 };
 
 // An orthonormal basis (u, w) of the plane ⟂ d (d unit).
@@ -74,11 +130,31 @@ struct RadonSearchResult {
   Eigen::Vector3d direction = Eigen::Vector3d::UnitZ();
   RadonPeak peak;
   std::vector<double> scores;  // each direction's best score (≥ 0), in input order
+  // The directions `scores` belong to and their best peaks (for the coarse-to-fine search:
+  // its first stage's), so a caller can revisit the runners-up.
+  std::vector<Eigen::Vector3d> directions;
+  std::vector<RadonPeak> peaks;
 };
 
 // Best peak over `directions`, in parallel (TBB).
 RadonSearchResult SearchDirections(const RadonLevel& level,
                                    std::span<const Eigen::Vector3d> directions,
                                    const RadonWindow* window);
+
+struct CoarseToFineOptions {
+  int stride = 2;               // the first stage evaluates every stride-th direction
+  int top_k = 16;               // the second stage searches near this many of its best
+  double neighbour_rad = 0.12;  // ... within this angle (rad)
+};
+
+// Best peak over `directions` (an ordered quasi-uniform set, such as FibonacciHemisphere's)
+// in two stages: every stride-th direction, then the others within neighbour_rad of the
+// top_k best of those. A line's score falls off smoothly with the angle between its
+// direction and d, so the set's best direction lies near the first stage's best ones and
+// the result is the set's best at about 1/stride of the cost. `scores` holds the first
+// stage's scores only (a uniform subsample of the set, for the statistics of line scores).
+RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& level, std::span<const Eigen::Vector3d> directions,
+                                               const CoarseToFineOptions& options = {},
+                                               const RadonWindow* window = nullptr);
 
 }  // namespace echoservo::tracking

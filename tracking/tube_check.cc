@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "tracking/axis_profile.h"
 #include "tracking/echo_axis_fit.h"
 #include "tracking/radon_transform.h"
 
@@ -26,7 +27,7 @@ double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, do
                   double dynamic_range_db, const TubeCheckOptions& o) {
   Eigen::Vector3d u, w;
   PlaneBasis(axis.direction, u, w);
-  auto amplitude = [&](double display) { return std::pow(10.0, display / 255.0 * dynamic_range_db / 20.0); };
+  auto amplitude = [&](double display) { return EchoAmplitude(display, dynamic_range_db); };
   auto sample0 = [&](const Eigen::Vector3d& p) {
     const double x = v.Sample(p);
     return std::isnan(x) ? 0.0 : x;
