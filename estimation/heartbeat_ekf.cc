@@ -53,8 +53,7 @@ int HeartbeatEkf::ChooseHarmonics() const {
   // Filters with 1..max harmonics, each initialised on the first part of the buffer,
   // predict the rest one measurement ahead; the smallest squared error wins.
   const double split_s = std::max(kChoiceSplit * o_.init_window_s, 1.0 / o_.min_rate_hz);
-  int best = 1;
-  double best_ss = INFINITY;
+  std::vector<double> scores;
   for (int n = 1; n <= o_.max_harmonics; ++n) {
     HeartbeatEkfOptions sub = o_;
     sub.harmonics = n;
@@ -69,12 +68,15 @@ int HeartbeatEkf::ChooseHarmonics() const {
     } catch (const std::invalid_argument&) {
       break;  // too many harmonics for this window or sampling rate
     }
-    if (ss < best_ss) {
-      best_ss = ss;
-      best = n;
-    }
+    scores.push_back(ss);
   }
-  return best;
+  // Parsimony: the fewest harmonics within 5 % (plus (0.01 mm)² a sample) of the best.
+  const double best = *std::min_element(scores.begin(), scores.end());
+  const double slack = 0.05 * best + 1e-4 * static_cast<double>(buffer_.size());
+  for (std::size_t i = 0; i < scores.size(); ++i) {
+    if (scores[i] <= best + slack) return static_cast<int>(i) + 1;
+  }
+  return 1;
 }
 
 void HeartbeatEkf::Initialise() {

@@ -21,8 +21,8 @@
 // deviation exceeds `max_phase_sd_rad` (a long gap), the filter re-initialises from new
 // data (keeping the measurements since the first rejection). Automatic harmonic count:
 // filters with 1..max_harmonics harmonics, initialised on the first 60 % of the window,
-// predict the remaining 40 % one measurement ahead; the count with the smallest squared
-// prediction error is used. While (re)initialising it
+// predict the remaining 40 % one measurement ahead; the fewest harmonics whose squared
+// prediction error is within 5 % of the smallest is used. While (re)initialising it
 // predicts the newest measurement (zero-order hold).
 #pragma once
 

@@ -106,7 +106,9 @@ double MotionLabNoise(const MotionModelSpec& spec, const MotionTrace& trace) {
   rich.rate_drift = true;
   rich.harmonics = std::min(spec.harmonics + 3, 12);
   const double rough = EstimateNoise(trace.position_mm, 1e-3);
-  const MotionFit fit = FitMotionModel(rich, trace, rough);
+  // The residual scale does not change where the fit ends, only its normalisation.
+  const MotionFit base = FitMotionModel(spec, trace, rough);
+  const MotionFit fit = FitBest(rich, trace, rough, StartMotionParameters(rich, base, trace));
   const int params = 2 + 1 + 3 + 2 * rich.harmonics;
   const double dof = std::max(1.0, static_cast<double>(trace.size()) - params);
   const double sigma = fit.rms_mm * std::sqrt(static_cast<double>(trace.size()) / dof);
