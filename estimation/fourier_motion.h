@@ -26,7 +26,7 @@ struct FourierMotion {
   double phase0_rad = 0.0;
   double frequency_hz = 1.0;
   double offset_mm = 0.0;
-  double drift_mm_s = 0.0;  // linear term (slow respiration), about t0
+  double drift_mm_s = 0.0;     // linear term (slow respiration), about t0
   std::vector<double> cos_mm;  // a_1..a_N
   std::vector<double> sin_mm;  // b_1..b_N
   double valid_until_s = std::numeric_limits<double>::infinity();

@@ -189,6 +189,32 @@ HarmonicFit FitHarmonics(const double* t_s, const double* x_mm, std::size_t n, d
     throw std::invalid_argument("harmonic fit: the sampling rate (" + std::to_string(fs) +
                                 " Hz) is too low for the requested harmonics");
   }
+  // A multiple of the found rate that explains nearly as much with proportionally fewer
+  // harmonics is the true fundamental (heart-rate variability lets a sub-harmonic's
+  // extra terms absorb beat-to-beat differences).
+  if (o.harmonics == 0) {
+    const Eigen::Map<const Eigen::VectorXd> y(x_mm, static_cast<Eigen::Index>(n));
+    const double tss = (y.array() - y.mean()).square().sum();
+    const double explained = tss - NestedRss(w, best_f, best_n, o.trend_order).back();
+    for (int m = 3; m >= 2; --m) {
+      const int fewer = std::max(1, best_n / m);
+      double f_best = 0.0;
+      double rss_best = std::numeric_limits<double>::infinity();
+      for (double f = m * best_f - m * step; f <= m * best_f + m * step + 1e-12; f += step / 2.0) {
+        if (f > o.max_rate_hz || allowed(f) < fewer) continue;
+        const double rss = NestedRss(w, f, fewer, o.trend_order).back();
+        if (rss < rss_best) {
+          rss_best = rss;
+          f_best = f;
+        }
+      }
+      if (f_best > 0.0 && tss - rss_best >= 0.95 * explained) {
+        best_f = f_best;
+        best_n = fewer;
+        break;
+      }
+    }
+  }
   // Golden-section refinement of the rate at the chosen harmonic count.
   auto rss_at = [&](double f) { return NestedRss(w, f, best_n, o.trend_order).back(); };
   double lo = std::max(o.min_rate_hz, best_f - step);

@@ -13,8 +13,9 @@ namespace {
 
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kNoiseFloorMm = 0.02;
-constexpr int kInitTrendOrder = 3;    // cubic: slow respiration within the window
-constexpr double kChoiceSplit = 0.6;  // harmonic choice: initialise on 60 %, score 40 %
+constexpr double kNoiseAdaptation = 0.02;  // ~50 measurements (2 s at 25 vol/s)
+constexpr int kInitTrendOrder = 3;         // cubic: slow respiration within the window
+constexpr double kChoiceSplit = 0.6;       // harmonic choice: initialise on 60 %, score 40 %
 
 bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
 
@@ -70,9 +71,9 @@ int HeartbeatEkf::ChooseHarmonics() const {
     }
     scores.push_back(ss);
   }
-  // Parsimony: the fewest harmonics within 5 % (plus (0.01 mm)² a sample) of the best.
+  // The fewest harmonics within (0.01 mm)² a sample of the best (ties on clean data).
   const double best = *std::min_element(scores.begin(), scores.end());
-  const double slack = 0.05 * best + 1e-4 * static_cast<double>(buffer_.size());
+  const double slack = 1e-4 * static_cast<double>(buffer_.size());
   for (std::size_t i = 0; i < scores.size(); ++i) {
     if (scores[i] <= best + slack) return static_cast<int>(i) + 1;
   }
@@ -86,13 +87,18 @@ void HeartbeatEkf::Initialise() {
     t.push_back(ti);
     z.push_back(zi);
   }
+  // The rate from a search with its own (BIC) harmonic count, which resists sub-harmonics;
+  // the coefficients at the filter's count.
   HarmonicFitOptions fo;
   fo.min_rate_hz = o_.min_rate_hz;
   fo.max_rate_hz = o_.max_rate_hz;
-  fo.harmonics = o_.harmonics > 0 ? o_.harmonics : ChooseHarmonics();
   fo.max_harmonics = o_.max_harmonics;
   fo.trend_order = kInitTrendOrder;
-  const HarmonicFit fit = FitHarmonics(t.data(), z.data(), t.size(), t.back(), fo);
+  const double rate_hz =
+      FitHarmonics(t.data(), z.data(), t.size(), t.back(), fo).motion.frequency_hz;
+  const int count = o_.harmonics > 0 ? o_.harmonics : ChooseHarmonics();
+  const HarmonicFit fit =
+      FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.back(), rate_hz, count, kInitTrendOrder);
   harmonics_ = fit.harmonics;
   noise_mm_ = o_.noise_mm > 0.0 ? o_.noise_mm : std::max(fit.noise_mm, kNoiseFloorMm);
 
@@ -234,6 +240,11 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
   }
   consecutive_rejections_ = 0;
   recent_.clear();
+  if (o_.noise_mm == 0.0) {
+    // Innovation-based measurement noise: E[ν²] = HPHᵀ + R (exponential average).
+    const double r = std::max(nu * nu - (s - noise_mm_ * noise_mm_), kNoiseFloorMm * kNoiseFloorMm);
+    noise_mm_ = std::sqrt((1.0 - kNoiseAdaptation) * noise_mm_ * noise_mm_ + kNoiseAdaptation * r);
+  }
   const Vector k = ph / s;
   x_ += k * nu;
   p_.noalias() -= k * ph.transpose();

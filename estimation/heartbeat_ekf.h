@@ -21,9 +21,11 @@
 // deviation exceeds `max_phase_sd_rad` (a long gap), the filter re-initialises from new
 // data (keeping the measurements since the first rejection). Automatic harmonic count:
 // filters with 1..max_harmonics harmonics, initialised on the first 60 % of the window,
-// predict the remaining 40 % one measurement ahead; the fewest harmonics whose squared
-// prediction error is within 5 % of the smallest is used. While (re)initialising it
-// predicts the newest measurement (zero-order hold).
+// predict the remaining 40 % one measurement ahead; the count with the smallest squared
+// prediction error is used (the fewest within (0.01 mm)² a sample of it, for clean data).
+// Measurement noise: seeded by the fit, then the innovation average
+// R ← 0.98·R + 0.02·max(ν² − HPHᵀ, (0.02 mm)²) over accepted measurements, unless set. While
+// (re)initialising it predicts the newest measurement (zero-order hold).
 #pragma once
 
 #include <Eigen/Core>
@@ -45,8 +47,8 @@ struct HeartbeatEkfOptions {
   double init_window_s = 4.0;
   double noise_mm = 0.0;  // measurement σ; 0: the initial fit's residual (floored at 0.02 mm)
   // Random-walk intensities (standard deviation growth per √s).
-  double coefficient_q_mm = 0.05;
-  double offset_q_mm = 0.3;
+  double coefficient_q_mm = 0.02;
+  double offset_q_mm = 0.1;
   double offset_rate_q_mm_s = 10.0;  // with respiration
   double rate_q_rad_s = 0.6;         // heart-rate variability
   double phase_q_rad = 0.02;

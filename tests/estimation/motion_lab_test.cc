@@ -54,12 +54,13 @@ TEST_P(MotionDiagnose, NamesTheHiddenEffect) {
   ExpectContains(d.verdict, std::string("missing effect: ") + h.expected);
 }
 
-INSTANTIATE_TEST_SUITE_P(Traces, MotionDiagnose,
-                         ::testing::Values(Hidden{"respiration", "heartbeat:6", 6, 2.0, 0.0, "respiration"},
-                                           Hidden{"rate_drift", "heartbeat:6", 6, 0.0, 20.0, "rate_drift"},
-                                           Hidden{"harmonics", "heartbeat:2", 3, 0.0, 0.0, "harmonic"},
-                                           Hidden{"none", "heartbeat:3", 3, 0.0, 0.0, ""}),
-                         [](const auto& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(
+    Traces, MotionDiagnose,
+    ::testing::Values(Hidden{"respiration", "heartbeat:6", 6, 2.0, 0.0, "respiration"},
+                      Hidden{"rate_drift", "heartbeat:6", 6, 0.0, 20.0, "rate_drift"},
+                      Hidden{"harmonics", "heartbeat:2", 3, 0.0, 0.0, "harmonic"},
+                      Hidden{"none", "heartbeat:3", 3, 0.0, 0.0, ""}),
+    [](const auto& info) { return std::string(info.param.name); });
 
 TEST(MotionModel, SpecsParseAndBadOnesNameTheCatalog) {
   const MotionModelSpec s = ParseMotionModel("heartbeat:3+respiration+harmonic");
@@ -67,9 +68,11 @@ TEST(MotionModel, SpecsParseAndBadOnesNameTheCatalog) {
   EXPECT_TRUE(s.respiration);
   EXPECT_FALSE(s.rate_drift);
   EXPECT_EQ(FormatMotionModel(s), "heartbeat:4+respiration");
-  ExpectContains(InvalidArgumentMessage([] { ParseMotionModel("heartbeat:3+wobble"); }), "unknown term 'wobble'");
+  ExpectContains(InvalidArgumentMessage([] { ParseMotionModel("heartbeat:3+wobble"); }),
+                 "unknown term 'wobble'");
   ExpectContains(InvalidArgumentMessage([] { ParseMotionModel("fourier:3"); }), "heartbeat:N");
-  ExpectContains(InvalidArgumentMessage([] { ParseMotionModel("heartbeat:0"); }), "bad harmonic count");
+  ExpectContains(InvalidArgumentMessage([] { ParseMotionModel("heartbeat:0"); }),
+                 "bad harmonic count");
 }
 
 TEST(CandidateRanking, JudgesByTheHeldOutExcess) {
@@ -80,7 +83,8 @@ TEST(CandidateRanking, JudgesByTheHeldOutExcess) {
   const Judgement b = JudgeCandidate({1.2}, {1.0}, rule);  // excess below 0.5: nothing to explain
   EXPECT_FALSE(b.significant);
   EXPECT_TRUE(std::isnan(b.explained[0]));
-  const Judgement c = JudgeCandidate({3.0, 3.0}, {1.0, 5.0}, rule);  // helps one channel, hurts the other
+  const Judgement c =
+      JudgeCandidate({3.0, 3.0}, {1.0, 5.0}, rule);  // helps one channel, hurts the other
   EXPECT_FALSE(c.significant);
 }
 

@@ -48,7 +48,8 @@ TEST(MotionTrace, BadFilesNameTheLineColumnAndProblem) {
   const std::string nan = error("t,x\n0,1\n0.1,nan\n0.2,3\n");
   ExpectContains(nan, "bad.csv: line 3: column 'x'");
   ExpectContains(nan, "NaN");
-  ExpectContains(error("t,x\n0,1\n0.1,2\n0.1,3\n"), "line 4: column 't': times must be strictly increasing");
+  ExpectContains(error("t,x\n0,1\n0.1,2\n0.1,3\n"),
+                 "line 4: column 't': times must be strictly increasing");
   ExpectContains(error("t,x\n0,1\n0.2,2\n0.1,3\n"), "line 4");
   ExpectContains(error("x,y\n0,1\n1,2\n"), "missing required column 't'");
   ExpectContains(error("t,x\n0,1\n1,2\n", "z"), "missing required column 'z'");
@@ -82,7 +83,8 @@ TEST(MotionTrace, InMemoryTracesAreValidated) {
   t.source = "mem";
   t.t_s = {0.0, 0.1, 0.1};
   t.position_mm = {0.0, 1.0, 2.0};
-  ExpectContains(InvalidArgumentMessage([&] { ValidateMotionTrace(t); }), "mem: sample 2: times must be strictly");
+  ExpectContains(InvalidArgumentMessage([&] { ValidateMotionTrace(t); }),
+                 "mem: sample 2: times must be strictly");
   t.t_s = {0.0, 0.1, 0.2};
   t.position_mm[1] = std::nan("");
   ExpectContains(InvalidArgumentMessage([&] { ValidateMotionTrace(t); }), "sample 1: NaN");

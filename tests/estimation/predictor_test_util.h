@@ -11,7 +11,8 @@ namespace echoservo::testing {
 
 // The test trace: 40 s at 250 Hz, 72 bpm, 12 mm, RSA ±3 bpm, wander 3 bpm,
 // 0.3 mm noise; measured at 25 vol/s by the predictor.
-inline control::SyntheticMotion MitralHrvTrace(double respiration_mm = 0.0, std::uint64_t seed = 1) {
+inline control::SyntheticMotion MitralHrvTrace(double respiration_mm = 0.0,
+                                               std::uint64_t seed = 1) {
   control::SyntheticMotionOptions o = control::MitralHrvDefaults();
   o.respiration_mm = respiration_mm;
   o.seed = seed;
@@ -24,6 +25,8 @@ inline estimation::MotionTrace TruthOf(const control::SyntheticMotion& m) {
   return t;
 }
 
-inline std::string PhantomPath() { return std::string(ECHOSERVO_DATA_DIR) + "/heart_motion/phantom_20hz.csv"; }
+inline std::string PhantomPath() {
+  return std::string(ECHOSERVO_DATA_DIR) + "/heart_motion/phantom_20hz.csv";
+}
 
 }  // namespace echoservo::testing
