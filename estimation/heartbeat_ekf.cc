@@ -169,18 +169,17 @@ void HeartbeatEkf::TimeUpdate(double dt) {
   (void)n;
 }
 
-double HeartbeatEkf::MeasurementJacobian(Vector& h) const {
-  const int n = StateSize();
+double HeartbeatEkf::ShapeAt(double theta, Vector* h) const {
   const int c0 = FirstCoefficient();
-  const int th = PhaseIndex();
-  h.setZero(n);
-  const double theta = x_(th);
   const double c1 = std::cos(theta);
   const double s1 = std::sin(theta);
   double z = x_(0) + x_(c0) * c1;
   double dtheta = -x_(c0) * s1;
-  h(0) = 1.0;
-  h(c0) = c1;
+  if (h != nullptr) {
+    h->setZero(StateSize());
+    (*h)(0) = 1.0;
+    (*h)(c0) = c1;
+  }
   double ck = c1;
   double sk = s1;
   for (int k = 2; k <= harmonics_; ++k) {
@@ -190,11 +189,13 @@ double HeartbeatEkf::MeasurementJacobian(Vector& h) const {
     const double a = x_(c0 + 2 * k - 3);
     const double b = x_(c0 + 2 * k - 2);
     z += a * ck + b * sk;
-    dtheta += k * (-a * sk + b * ck);
-    h(c0 + 2 * k - 3) = ck;
-    h(c0 + 2 * k - 2) = sk;
+    if (h != nullptr) {
+      dtheta += k * (-a * sk + b * ck);
+      (*h)(c0 + 2 * k - 3) = ck;
+      (*h)(c0 + 2 * k - 2) = sk;
+    }
   }
-  h(th) = dtheta;
+  if (h != nullptr) (*h)(PhaseIndex()) = dtheta;
   return z;
 }
 
@@ -223,7 +224,7 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
     return UpdateResult::kLost;
   }
   Vector h;
-  const double predicted = MeasurementJacobian(h);
+  const double predicted = ShapeAt(x_(PhaseIndex()), &h);
   const Vector ph = p_ * h;
   const double s = h.dot(ph) + noise_mm_ * noise_mm_;
   const double nu = z - predicted;
@@ -255,23 +256,9 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
 
 double HeartbeatEkf::Predict(double t_s) const {
   if (!initialised_) return last_mm_;
-  const int c0 = FirstCoefficient();
-  const int th = PhaseIndex();
   const double dt = t_s - t_;
-  const double theta = x_(th) + x_(th + 1) * dt;
-  const double c1 = std::cos(theta);
-  const double s1 = std::sin(theta);
-  double z = x_(0) + x_(c0) * c1;
-  if (o_.respiration) z += x_(1) * dt;
-  double ck = c1;
-  double sk = s1;
-  for (int k = 2; k <= harmonics_; ++k) {
-    const double next = ck * c1 - sk * s1;
-    sk = sk * c1 + ck * s1;
-    ck = next;
-    z += x_(c0 + 2 * k - 3) * ck + x_(c0 + 2 * k - 2) * sk;
-  }
-  return z;
+  const double z = ShapeAt(x_(PhaseIndex()) + x_(PhaseIndex() + 1) * dt, nullptr);
+  return o_.respiration ? z + x_(1) * dt : z;
 }
 
 FourierMotion HeartbeatEkf::Motion() const {

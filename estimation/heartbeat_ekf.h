@@ -93,7 +93,8 @@ class HeartbeatEkf final : public MotionPredictor {
   void Initialise();
   int ChooseHarmonics() const;
   void TimeUpdate(double dt);
-  double MeasurementJacobian(Vector& h) const;  // returns h(x), fills ∂h/∂x
+  // The measurement model at phase θ (offset and harmonics); fills ∂h/∂x when h is set.
+  double ShapeAt(double theta, Vector* h) const;
   int StateSize() const;
   int FirstCoefficient() const { return o_.respiration ? 2 : 1; }
   int PhaseIndex() const { return StateSize() - 2; }
