@@ -3,6 +3,7 @@
 #include "apps/commands/bench_commands.h"
 #include "apps/commands/imaging_commands.h"
 #include "apps/commands/lab_commands.h"
+#include "apps/commands/motion_commands.h"
 
 #include <CLI/CLI.hpp>
 #include <exception>
@@ -17,6 +18,7 @@ int RunCli(int argc, char** argv) {
   app.set_version_flag("--version", "echoservo 0.1.0");
   AddSimCommands(app);
   AddLabCommands(app);
+  AddPredictCommand(app);
   AddInfoCommand(app);
   AddDetectCommand(app);
   AddRenderCommand(app);

@@ -3,12 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <atomic>
-#include <future>
 #include <mutex>
 #include <numeric>
 #include <stdexcept>
 
+#include "estimation/candidate_ranking.h"
 #include "hw/effect_registry.h"
 
 namespace echoservo::estimation {
@@ -19,18 +18,8 @@ const hw::EffectRegistry& Catalog(const FitOptions& o) {
   return o.registry != nullptr ? *o.registry : builtin;
 }
 
-std::string Percent(double fraction) {
-  char buf[32];
-  const double pct = std::round(100.0 * fraction);
-  std::snprintf(buf, sizeof buf, "%.0f%%", pct == 0.0 ? 0.0 : pct);  // never "-0%"
-  return buf;
-}
-
-std::string Num(double v, int decimals) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-  return buf;
-}
+std::string Percent(double fraction) { return PercentText(fraction); }
+std::string Num(double v, int decimals) { return FixedText(v, decimals); }
 
 // Starting values for SPEC+effect: the model's fitted values where shared.
 std::vector<double> StartFrom(const FitResult& base, const std::vector<std::string>& effects,
@@ -123,28 +112,19 @@ std::vector<std::string> Concentration(const Diagnosis& d, const LabDataset& ds,
 
 CrossValidation CrossValidate(const std::vector<std::string>& effects, const LabDataset& ds, const FitOptions& o,
                               int folds, const std::vector<double>* initial) {
-  const std::size_t n = ds.trials.size();
-  CrossValidation cv;
-  if (n < 2 || folds < 2) {  // no trial to hold out: in-sample (documented)
+  if (ds.trials.size() < 2 || folds < 2) {  // no trial to hold out: in-sample (documented)
     const FitResult r = FitModel(effects, ds, o, {}, initial);
     return {r.tip_mse_norm, r.force_mse_norm};
   }
-  const int k = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(folds), n));
-  double tip = 0.0, force = 0.0, weight = 0.0;
-  for (int f = 0; f < k; ++f) {
-    std::vector<std::size_t> train, test;
-    for (std::size_t i = 0; i < n; ++i) (static_cast<int>(i % static_cast<std::size_t>(k)) == f ? test : train).push_back(i);
-    const FitResult fit = FitModel(effects, ds, o, train, initial);
-    const FitResult held = EvaluateModel(effects, fit.parameters, ds, o, test);
-    double m = 0.0;
-    for (std::size_t i : test) m += static_cast<double>(ds.trials[i].fit_index.size());
-    tip += held.tip_mse_norm * m;
-    force += held.force_mse_norm * m;
-    weight += m;
-  }
-  cv.tip_mse = tip / weight;
-  cv.force_mse = force / weight;
-  return cv;
+  const std::vector<double> mse = CrossValidateFolds(
+      ds.trials.size(), folds, [&](const std::vector<std::size_t>& train, const std::vector<std::size_t>& test) {
+        const FitResult fit = FitModel(effects, ds, o, train, initial);
+        const FitResult held = EvaluateModel(effects, fit.parameters, ds, o, test);
+        double m = 0.0;
+        for (std::size_t i : test) m += static_cast<double>(ds.trials[i].fit_index.size());
+        return FoldScore{{held.tip_mse_norm, held.force_mse_norm}, m};
+      });
+  return {mse[0], mse[1]};
 }
 
 Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds, const DiagnoseOptions& o) {
@@ -177,44 +157,25 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds, 
   };
   // Fit the candidates on `threads` workers pulling from a shared queue.
   d.candidates.resize(names.size());
-  std::atomic<std::size_t> next{0};
   std::mutex progress_mutex;
-  auto worker = [&] {
-    for (std::size_t i = next++; i < names.size(); i = next++) {
-      if (o.fit.progress) {
-        const std::lock_guard<std::mutex> lock(progress_mutex);
-        o.fit.progress("diagnose: fitting " + hw::FormatModelSpec(model) + "+" + names[i]);
-      }
-      d.candidates[i] = evaluate(names[i]);
+  ForEachInParallel(names.size(), o.threads, [&](std::size_t i) {
+    if (o.fit.progress) {
+      const std::lock_guard<std::mutex> lock(progress_mutex);
+      o.fit.progress("diagnose: fitting " + hw::FormatModelSpec(model) + "+" + names[i]);
     }
-  };
-  std::vector<std::future<void>> workers;
-  for (int t = 0; t < std::max(1, o.threads); ++t) workers.push_back(std::async(std::launch::async, worker));
-  for (auto& w : workers) w.get();
-
-  const double tip_excess = std::max(d.base_cv.tip_mse - 1.0, 0.0);
-  const double force_excess = std::max(d.base_cv.force_mse - 1.0, 0.0);
-  for (Candidate& c : d.candidates) {
-    const double tip_drop = d.base_cv.tip_mse - c.cv.tip_mse;
-    const double force_drop = d.base_cv.force_mse - c.cv.force_mse;
-    // A fraction of an excess that is (nearly) nothing is noise over noise: undefined.
-    c.tip_explained = tip_excess >= o.min_excess ? tip_drop / tip_excess : std::nan("");
-    c.force_explained = force_excess >= o.min_excess ? force_drop / force_excess : std::nan("");
-    c.score = tip_drop + force_drop;
-    const bool tip_ok = std::isfinite(c.tip_explained) && c.tip_explained >= o.min_explained &&
-                        force_drop > -std::max(0.1 * force_excess, 0.5);
-    const bool force_ok = std::isfinite(c.force_explained) && c.force_explained >= o.min_explained &&
-                          tip_drop > -std::max(0.1 * tip_excess, 0.5);
-    c.significant = tip_ok || force_ok;
-    const double tip_part = std::isfinite(c.tip_explained) ? c.tip_explained : -1e9;
-    const double force_part = std::isfinite(c.force_explained) ? c.force_explained : -1e9;
-    c.channel = tip_part == force_part ? (tip_drop >= force_drop ? "tip" : "force")
-                                       : (tip_part > force_part ? "tip" : "force");
-  }
-  std::stable_sort(d.candidates.begin(), d.candidates.end(), [](const Candidate& a, const Candidate& b) {
-    if (a.significant != b.significant) return a.significant;
-    return a.score > b.score;
+    d.candidates[i] = evaluate(names[i]);
   });
+
+  const SignificanceRule rule{o.min_excess, o.min_explained};
+  for (Candidate& c : d.candidates) {
+    const Judgement j = JudgeCandidate({d.base_cv.tip_mse, d.base_cv.force_mse}, {c.cv.tip_mse, c.cv.force_mse}, rule);
+    c.tip_explained = j.explained[0];
+    c.force_explained = j.explained[1];
+    c.score = j.score;
+    c.significant = j.significant;
+    c.channel = j.channel == 0 ? "tip" : "force";
+  }
+  RankCandidates(d.candidates);
 
   for (Candidate& c : d.candidates) {
     const bool tip = c.channel == "tip";

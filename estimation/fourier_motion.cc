@@ -14,7 +14,8 @@ void FourierMotion::Validate() const {
     throw std::invalid_argument("Fourier motion: frequency_hz must be finite and > 0");
   }
   auto finite = [](double v) { return std::isfinite(v); };
-  bool ok = finite(t0_s) && finite(phase0_rad) && finite(offset_mm) && !std::isnan(valid_until_s);
+  bool ok = finite(t0_s) && finite(phase0_rad) && finite(offset_mm) && finite(drift_mm_s) &&
+            !std::isnan(valid_until_s);
   for (std::size_t k = 0; k < cos_mm.size(); ++k) ok = ok && finite(cos_mm[k]) && finite(sin_mm[k]);
   if (!ok) throw std::invalid_argument("Fourier motion: non-finite coefficient or time");
 }
@@ -26,7 +27,7 @@ MotionSample FourierMotion::Evaluate(double t_s) const {
   const double s1 = std::sin(phase);
   double ck = c1;
   double sk = s1;
-  MotionSample out{offset_mm, 0.0, 0.0};
+  MotionSample out{offset_mm + drift_mm_s * (t_s - t0_s), drift_mm_s, 0.0};
   for (std::size_t i = 0; i < cos_mm.size(); ++i) {
     const double k = static_cast<double>(i + 1);
     const double a = cos_mm[i];

@@ -1,9 +1,12 @@
 // A periodic motion as a truncated Fourier series: the heartbeat model.
 //
-// x(t) = offset + Σ_{k=1..N} [a_k cos(k·φ(t)) + b_k sin(k·φ(t))],  φ(t) = 2π·f·(t − t0) + φ0
-// Positions in mm, time in s, frequency in Hz. The estimator exports its prediction in
-// this form with a validity horizon, so the 1 kHz servo can evaluate position,
-// velocity and acceleration between volumes; reference trajectories use it too.
+// x(t) = offset + drift·(t − t0) + Σ_{k=1..N} [a_k cos(k·φ(t)) + b_k sin(k·φ(t))],
+// φ(t) = 2π·f·(t − t0) + φ0
+// Positions in mm, time in s, frequency in Hz. The heartbeat estimator
+// (estimation/heartbeat_ekf.h) exports its prediction in this form with a validity
+// horizon, so the 1 kHz servo can evaluate position, velocity and acceleration between
+// volumes; `drift` is its slow low-order (respiration) term, 0 otherwise. Reference
+// trajectories use it too.
 // Evaluation uses the angle-addition recurrence: one sin/cos pair per call.
 #pragma once
 
@@ -23,6 +26,7 @@ struct FourierMotion {
   double phase0_rad = 0.0;
   double frequency_hz = 1.0;
   double offset_mm = 0.0;
+  double drift_mm_s = 0.0;     // linear term (slow respiration), about t0
   std::vector<double> cos_mm;  // a_1..a_N
   std::vector<double> sin_mm;  // b_1..b_N
   double valid_until_s = std::numeric_limits<double>::infinity();

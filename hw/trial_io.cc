@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "hw/csv_table.h"
 #include "hw/trial.h"
 
 namespace echoservo::hw {
@@ -25,78 +26,19 @@ namespace {
 namespace fs = std::filesystem;
 using Json = nlohmann::ordered_json;  // keeps key order, so `meta` stays as written
 
-constexpr std::array<std::string_view, 5> kRequiredColumns = {"t", "base_cmd", "base", "tip",
-                                                              "force"};
+constexpr std::array<const char*, 5> kRequiredColumns = {"t", "base_cmd", "base", "tip", "force"};
 constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
-constexpr std::size_t kMaxQuotedChars = 32;  // longer offending fields are truncated
-constexpr int kMaxJsonDepth = 64;            // guards the recursive JSON serialiser
+constexpr int kMaxJsonDepth = 64;  // guards the recursive JSON serialiser
 constexpr std::size_t kMinSamples = 2;
 
 [[noreturn]] void Fail(const fs::path& file, const std::string& why) {
   throw TrialFormatError(file.string() + ": " + why);
 }
 
-[[noreturn]] void FailLine(const fs::path& file, std::size_t line, const std::string& why) {
-  Fail(file, "line " + std::to_string(line) + ": " + why);
-}
-
-std::string_view Trim(std::string_view s) {
-  constexpr std::string_view kSpace = " \t\r\n\v\f";
-  const std::size_t b = s.find_first_not_of(kSpace);
-  if (b == std::string_view::npos) return {};
-  const std::size_t e = s.find_last_not_of(kSpace);
-  return s.substr(b, e - b + 1);
-}
-
-// `"text"` with non-printable bytes escaped and long text truncated, for error messages.
-std::string Quote(std::string_view s) {
-  std::string out = "\"";
-  const std::size_t n = std::min(s.size(), kMaxQuotedChars);
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto c = static_cast<unsigned char>(s[i]);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += static_cast<char>(c);
-    } else if (c < 0x20 || c >= 0x7F) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02X", static_cast<unsigned>(c));
-      out += buf;
-    } else {
-      out += static_cast<char>(c);
-    }
-  }
-  out += '"';
-  if (s.size() > n) out += "... (" + std::to_string(s.size()) + " bytes, truncated)";
-  return out;
-}
-
-enum class NumberStatus { kOk, kNotANumber, kNonFinite, kOutOfRange };
-
-// Locale-independent strict parse: the whole (trimmed) field must be one decimal number.
-NumberStatus ParseNumber(std::string_view s, double& out) {
-  if (s.size() >= 2 && s.front() == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);
-  if (s.empty()) return NumberStatus::kNotANumber;
-  const char* end = s.data() + s.size();
-  const auto [ptr, ec] = std::from_chars(s.data(), end, out, std::chars_format::general);
-  if (ec == std::errc::result_out_of_range && ptr == end) return NumberStatus::kOutOfRange;
-  if (ec != std::errc() || ptr != end) return NumberStatus::kNotANumber;
-  if (!std::isfinite(out)) return NumberStatus::kNonFinite;
-  return NumberStatus::kOk;
-}
-
-// Shortest decimal text that parses back to exactly `v` (std::to_chars round-trip form).
-void AppendNumber(std::string& out, double v) {
-  char buf[64];
-  const auto [ptr, ec] = std::to_chars(buf, buf + sizeof buf, v);
-  if (ec != std::errc()) throw std::runtime_error("trial writer: cannot format a number");
-  out.append(buf, ptr);
-}
-
-std::string FormatNumber(double v) {
-  std::string s;
-  AppendNumber(s, v);
-  return s;
-}
+using csv::AppendNumber;
+using csv::FormatNumber;
+using csv::Quote;
+using csv::Trim;
 
 void RequireRegularFile(const fs::path& path, const std::string& what) {
   std::error_code ec;
@@ -113,142 +55,17 @@ fs::path SiblingJson(const fs::path& csv_path) {
 
 // ----------------------------------------------------------------------------- CSV
 
-struct CsvColumns {
-  std::vector<std::string> names;           // in file order
-  std::vector<std::vector<double>> values;  // one vector per column, file order
-};
-
-CsvColumns ReadCsv(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) Fail(path, "cannot open file for reading");
-
-  CsvColumns csv;
-  std::vector<std::string_view> fields;  // sized from the header, i.e. from bytes actually read
-  std::string line;
-  std::size_t line_no = 0;
-  bool have_header = false;
-  std::size_t t_col = 0;
-  std::optional<std::size_t> blank_line;  // first blank line after the header, if any
-  std::size_t prev_line_no = 0;           // line of the previous sample
-
-  while (std::getline(in, line)) {
-    ++line_no;
-    std::string_view view = line;
-    if (line_no == 1 && view.starts_with(kUtf8Bom)) view.remove_prefix(kUtf8Bom.size());
-    if (!view.empty() && view.back() == '\r') view.remove_suffix(1);
-
-    if (!have_header) {
-      if (Trim(view).empty()) {
-        // Blank lines may only trail the data; a leading one means no header line.
-        continue;
-      }
-      if (line_no != 1) {
-        FailLine(path, line_no,
-                 "the header line must be the first line (found blank lines before it)");
-      }
-      std::unordered_set<std::string_view> seen;  // views into `line`, alive for this block
-      std::size_t pos = 0;
-      while (true) {
-        const std::size_t comma = view.find(',', pos);
-        const std::string_view name = Trim(view.substr(
-            pos, comma == std::string_view::npos ? std::string_view::npos : comma - pos));
-        const std::size_t index = csv.names.size() + 1;
-        if (name.empty()) {
-          FailLine(path, line_no,
-                   "column " + std::to_string(index) + " of the header has an empty name");
-        }
-        if (!seen.insert(name).second) {
-          FailLine(
-              path, line_no,
-              "duplicate column name " + Quote(name) + " (column " + std::to_string(index) + ")");
-        }
-        csv.names.emplace_back(name);
-        if (comma == std::string_view::npos) break;
-        pos = comma + 1;
-      }
-      std::string missing;
-      std::size_t n_missing = 0;
-      for (std::string_view req : kRequiredColumns) {
-        if (!seen.contains(req)) {
-          missing += (n_missing++ ? ", '" : "'") + std::string(req) + "'";
-        }
-      }
-      if (n_missing > 0) {
-        FailLine(
-            path, line_no,
-            std::string(n_missing == 1 ? "missing required column " : "missing required columns ") +
-                missing + " (required: t,base_cmd,base,tip,force, in any order)");
-      }
-      t_col = static_cast<std::size_t>(std::find(csv.names.begin(), csv.names.end(), "t") -
-                                       csv.names.begin());
-      csv.values.resize(csv.names.size());
-      fields.resize(csv.names.size());
-      have_header = true;
-      continue;
-    }
-
-    if (Trim(view).empty()) {
-      if (!blank_line) blank_line = line_no;
-      continue;
-    }
-    if (blank_line) {
-      FailLine(path, *blank_line,
-               "empty line inside the data (only trailing empty lines are allowed)");
-    }
-
-    // Split without allocating per field; stop counting into `fields` once it is full.
-    std::size_t count = 0;
-    std::size_t pos = 0;
-    while (true) {
-      const std::size_t comma = view.find(',', pos);
-      if (count < fields.size()) {
-        fields[count] = view.substr(
-            pos, comma == std::string_view::npos ? std::string_view::npos : comma - pos);
-      }
-      ++count;
-      if (comma == std::string_view::npos) break;
-      pos = comma + 1;
-    }
-    if (count != fields.size()) {
-      FailLine(path, line_no,
-               "expected " + std::to_string(fields.size()) + " fields (as in the header), found " +
-                   std::to_string(count));
-    }
-
-    for (std::size_t c = 0; c < fields.size(); ++c) {
-      const std::string_view field = Trim(fields[c]);
-      double v = 0.0;
-      const NumberStatus status = ParseNumber(field, v);
-      if (status != NumberStatus::kOk) {
-        const std::string column = "column '" + csv.names[c] + "': ";
-        switch (status) {
-          case NumberStatus::kNonFinite:
-            FailLine(path, line_no, column + "NaN or infinity is not allowed: " + Quote(field));
-          case NumberStatus::kOutOfRange:
-            FailLine(path, line_no,
-                     column + "number out of the range of a double: " + Quote(field));
-          default:
-            FailLine(path, line_no, column + "not a number: " + Quote(field));
-        }
-      }
-      if (c == t_col && !csv.values[c].empty() && !(v > csv.values[c].back())) {
-        FailLine(path, line_no,
-                 "column 't': times must be strictly increasing (t = " + FormatNumber(v) +
-                     " s is not after t = " + FormatNumber(csv.values[c].back()) + " s on line " +
-                     std::to_string(prev_line_no) + ")");
-      }
-      csv.values[c].push_back(v);
-    }
-    prev_line_no = line_no;
+CsvTable ReadCsv(const fs::path& path) {
+  CsvTableSpec spec;
+  spec.required = {kRequiredColumns.begin(), kRequiredColumns.end()};
+  spec.required_hint = "(required: t,base_cmd,base,tip,force, in any order)";
+  spec.min_rows = kMinSamples;
+  spec.what = "a trial";
+  try {
+    return ReadCsvTable(path, spec);
+  } catch (const CsvFormatError& e) {
+    throw TrialFormatError(e.what());
   }
-  if (in.bad()) Fail(path, "read error");
-  if (!have_header) Fail(path, "empty file (no header line)");
-  const std::size_t samples = csv.values.front().size();
-  if (samples < kMinSamples) {
-    Fail(path, "has " + std::to_string(samples) + " sample(s); a trial needs at least " +
-                   std::to_string(kMinSamples));
-  }
-  return csv;
 }
 
 // ---------------------------------------------------------------------------- JSON
@@ -444,7 +261,7 @@ Trial ReadTrial(const fs::path& csv_path) {
 
   Trial trial;
   trial.name = csv_path.stem().string();
-  CsvColumns csv = ReadCsv(csv_path);
+  CsvTable csv = ReadCsv(csv_path);
   for (std::size_t c = 0; c < csv.names.size(); ++c) {
     const std::string& name = csv.names[c];
     std::vector<double>& values = csv.values[c];

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
+#include "apps/commands/lab_motion.h"
 #include "apps/output.h"
 #include "estimation/diagnosis.h"
 #include "estimation/lab_report.h"
@@ -27,7 +28,15 @@ struct LabFlags {
   bool json = false;
   int stride = 4;
   std::string residuals_dir;
+  std::string column;  // motion traces only
 };
+
+// A regular file is a target-motion trace (the motion lab); a folder a catheter dataset.
+bool IsMotionTrace(const LabFlags& f, MotionLabFlags& m) {
+  if (!std::filesystem::is_regular_file(f.dataset)) return false;
+  m = {f.dataset, f.model, f.column, f.json};
+  return true;
+}
 
 // Writes each trial with its model predictions as extra columns (trial format).
 void WriteResiduals(const std::string& dir, const estimation::LabDataset& ds, const estimation::FitResult& r) {
@@ -103,6 +112,7 @@ void PrintGroups(const char* title, const std::vector<estimation::GroupStat>& gr
 }
 
 void RunCompare(const LabFlags& f) {
+  if (MotionLabFlags m; IsMotionTrace(f, m)) return RunMotionCompare(m);
   const estimation::LabDataset ds = Load(f);
   const auto effects = hw::ParseModelSpec(f.model, hw::EffectRegistry::WithBuiltinEffects());
   const estimation::FitResult r = estimation::FitModel(effects, ds, Options());
@@ -182,6 +192,7 @@ nlohmann::json DiagnosisJson(const estimation::Diagnosis& d) {
 }
 
 void RunDiagnose(const LabFlags& f) {
+  if (MotionLabFlags m; IsMotionTrace(f, m)) return RunMotionDiagnose(m);
   const estimation::LabDataset ds = Load(f);
   const auto effects = hw::ParseModelSpec(f.model, hw::EffectRegistry::WithBuiltinEffects());
   estimation::DiagnoseOptions o;
@@ -214,8 +225,13 @@ void RunDiagnose(const LabFlags& f) {
 }
 
 void AddCommon(CLI::App* cmd, LabFlags& f) {
-  cmd->add_option("DATASET", f.dataset, "Folder of trials (CSV + JSON pairs, docs/trial_format.md)")->required();
-  cmd->add_option("--model", f.model, "Model SPEC, e.g. seed or seed+capstan_friction");
+  cmd->add_option("DATASET", f.dataset,
+                  "Folder of trials (CSV + JSON pairs, docs/trial_format.md), or a motion-trace CSV (docs/predictor.md)")
+      ->required();
+  cmd->add_option("--model", f.model,
+                  "Model SPEC, e.g. seed or seed+capstan_friction; for a motion trace heartbeat:N[+respiration]"
+                  "[+rate_drift] (default heartbeat:2)");
+  cmd->add_option("--column", f.column, "Motion traces: the position column (default: the first after 't')");
   cmd->add_flag("--skip-bad", f.skip_bad, "Skip invalid trials (each is listed) instead of failing");
   cmd->add_option("--stride", f.stride, "Use every N-th sample as a residual (default 4: 250 Hz from 1 kHz)");
   cmd->add_flag("--json", f.json, "Print JSON");

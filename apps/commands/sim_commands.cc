@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include "apps/cli.h"
+#include "apps/commands/motion_commands.h"
 
 namespace echoservo::apps {
 
@@ -13,6 +14,7 @@ void AddSimCommands(CLI::App& app) {
   AddSimSweeps(sim);
   AddSimRecord(sim);
   AddSimEffects(sim);
+  AddSimMotion(sim);
 }
 
 }  // namespace echoservo::apps

@@ -1,0 +1,130 @@
+#include "apps/commands/lab_motion.h"
+
+#include <cmath>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "apps/output.h"
+#include "estimation/motion_diagnosis.h"
+
+namespace echoservo::apps {
+namespace {
+
+estimation::MotionModelSpec Spec(const MotionLabFlags& f) {
+  return estimation::ParseMotionModel(f.model == "seed" || f.model.empty() ? "heartbeat:2"
+                                                                           : f.model);
+}
+
+nlohmann::json Nullable(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
+nlohmann::json ParamsJson(const estimation::MotionFit& fit) {
+  nlohmann::json p = nlohmann::json::object();
+  for (const auto& e : fit.estimates)
+    p[e.name] = {{"value", e.value}, {"sd", Nullable(e.sd)}, {"unit", e.unit}};
+  return p;
+}
+
+nlohmann::json GroupsJson(const std::vector<estimation::MotionGroup>& groups) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& g : groups) {
+    out.push_back({{"group", g.label},
+                   {"samples", g.samples},
+                   {"rms_mm", g.rms_mm},
+                   {"sample_share", g.sample_share},
+                   {"error_share", g.error_share}});
+  }
+  return out;
+}
+
+void PrintGroups(const char* title, const std::vector<estimation::MotionGroup>& groups) {
+  std::cout << "\nby " << title << ":\n";
+  Table t({"group", "samples", "rms_mm", "share_of_samples", "share_of_error_sq"});
+  for (const auto& g : groups) {
+    t.AddRow({g.label, std::to_string(g.samples), Fixed(g.rms_mm, 4),
+              Fixed(100 * g.sample_share, 1) + "%", Fixed(100 * g.error_share, 1) + "%"});
+  }
+  t.Print(std::cout);
+}
+
+}  // namespace
+
+void RunMotionCompare(const MotionLabFlags& f) {
+  const estimation::MotionTrace trace = estimation::ReadMotionTrace(f.trace, f.column);
+  const estimation::MotionModelSpec spec = Spec(f);
+  const double noise = estimation::MotionLabNoise(spec, trace);
+  const estimation::MotionFit fit = estimation::FitMotionModel(spec, trace, noise);
+  const estimation::MotionBreakdown b = estimation::ComputeMotionBreakdown(trace, fit);
+  if (f.json) {
+    std::cout << nlohmann::json{{"trace", f.trace},
+                                {"column", trace.column},
+                                {"model", estimation::FormatMotionModel(spec)},
+                                {"rms_mm", fit.rms_mm},
+                                {"noise_mm", noise},
+                                {"mse_noise", fit.mse_norm},
+                                {"params", ParamsJson(fit)},
+                                {"breakdown",
+                                 {{"cardiac_phase", GroupsJson(b.cardiac_phase)},
+                                  {"time", GroupsJson(b.time)}}},
+                                {"fit_seconds", fit.seconds}}
+                     .dump(2)
+              << "\n";
+    return;
+  }
+  std::cout << "model " << estimation::FormatMotionModel(spec) << " on " << f.trace << " ("
+            << trace.column << "): position RMS " << Fixed(fit.rms_mm, 4) << " mm (noise "
+            << Fixed(noise, 4) << " mm)\n\n";
+  Table p({"parameter", "value", "sd", "unit"});
+  for (const auto& e : fit.estimates)
+    p.AddRow({e.name, Fixed(e.value, 5), std::isfinite(e.sd) ? Fixed(e.sd, 5) : "-", e.unit});
+  p.Print(std::cout);
+  std::cout << "\nWhere the model fails (share of the squared residual):";
+  PrintGroups("cardiac phase", b.cardiac_phase);
+  PrintGroups("time", b.time);
+}
+
+void RunMotionDiagnose(const MotionLabFlags& f) {
+  const estimation::MotionTrace trace = estimation::ReadMotionTrace(f.trace, f.column);
+  const estimation::MotionModelSpec spec = Spec(f);
+  const estimation::MotionDiagnosis d = estimation::DiagnoseMotion(spec, trace);
+  if (f.json) {
+    nlohmann::json candidates = nlohmann::json::array();
+    for (const auto& c : d.candidates) {
+      candidates.push_back({{"effect", c.effect},
+                            {"rms_mm", c.fit.rms_mm},
+                            {"cv_mse_noise", c.cv_mse},
+                            {"explained", Nullable(c.explained)},
+                            {"score", c.score},
+                            {"significant", c.significant},
+                            {"params", ParamsJson(c.fit)},
+                            {"evidence", c.evidence}});
+    }
+    std::cout << nlohmann::json{{"trace", f.trace},
+                                {"column", trace.column},
+                                {"model", estimation::FormatMotionModel(spec)},
+                                {"rms_mm", d.base.rms_mm},
+                                {"noise_mm", d.noise_mm},
+                                {"cv_mse_noise", d.base_cv_mse},
+                                {"params", ParamsJson(d.base)},
+                                {"adequate", d.adequate},
+                                {"verdict", d.verdict},
+                                {"candidates", candidates}}
+                     .dump(2)
+              << "\n";
+    return;
+  }
+  std::cout << "model " << estimation::FormatMotionModel(spec) << ": position RMS "
+            << Fixed(d.base.rms_mm, 4) << " mm (noise " << Fixed(d.noise_mm, 4) << " mm)\n\n";
+  Table t({"rank", "candidate", "rms_mm", "held-out excess removed", "significant"});
+  int rank = 1;
+  for (const auto& c : d.candidates) {
+    t.AddRow({std::to_string(rank++), "+" + c.effect, Fixed(c.fit.rms_mm, 4),
+              std::isfinite(c.explained) ? estimation::PercentText(c.explained) : "-",
+              c.significant ? "yes" : "no"});
+  }
+  t.Print(std::cout);
+  std::cout << "\n" << (d.adequate ? "ADEQUATE" : "MISSING") << ": " << d.verdict << "\n";
+}
+
+}  // namespace echoservo::apps

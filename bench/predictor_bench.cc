@@ -1,0 +1,102 @@
+// The heartbeat predictor's costs: one EKF measurement update (target ≤ 20 µs) and one
+// 1 kHz evaluation of the exported Fourier motion (target ≤ 1 µs), beside the
+// constant-velocity KF baseline's update in the same process. Binary:
+// ${CMAKE_RUNTIME_OUTPUT_DIRECTORY}/echoservo_predictor_bench.
+#include <benchmark/benchmark.h>
+
+#include "control/synthetic_motion.h"
+#include "estimation/heartbeat_ekf.h"
+#include "estimation/motion_trace.h"
+
+namespace {
+
+using echoservo::estimation::HeartbeatEkf;
+
+// Ten minutes of the synthetic trace, measured at 25 vol/s.
+const echoservo::estimation::MotionTrace& Measurements() {
+  static const echoservo::estimation::MotionTrace trace = [] {
+    echoservo::control::SyntheticMotionOptions o = echoservo::control::MitralHrvDefaults();
+    o.duration_s = 600.0;
+    o.sample_rate_hz = 25.0;
+    return echoservo::control::MakeSyntheticMotion(o).measured;
+  }();
+  return trace;
+}
+
+// A fresh filter is initialised on the first 5 s (untimed); the timed loop feeds one
+// measurement per iteration and starts over (untimed) at the end of the trace.
+template <class Make>
+void Feed(benchmark::State& state, Make make) {
+  const echoservo::estimation::MotionTrace& trace = Measurements();
+  auto filter = make();
+  std::size_t i = trace.size();
+  for (auto _ : state) {
+    if (i == trace.size()) {
+      state.PauseTiming();
+      filter = make();
+      for (i = 0; trace.t_s[i] < 5.0; ++i) filter.Update(trace.t_s[i], trace.position_mm[i]);
+      state.ResumeTiming();
+    }
+    filter.Update(trace.t_s[i], trace.position_mm[i]);
+    ++i;
+  }
+}
+
+void BM_EkfUpdate(benchmark::State& state) {
+  echoservo::estimation::HeartbeatEkfOptions o;
+  o.harmonics = static_cast<int>(state.range(0));
+  o.respiration = state.range(1) != 0;
+  Feed(state, [&] { return HeartbeatEkf(o); });
+}
+BENCHMARK(BM_EkfUpdate)->Args({6, 0})->Args({6, 1})->Args({12, 1});
+
+// (Re-)initialisation: the first 4 s (100 measurements) into a fresh filter, including
+// the batch rate search and, with automatic harmonics, the harmonic-count choice.
+void BM_EkfInitialisation(benchmark::State& state) {
+  const echoservo::estimation::MotionTrace& trace = Measurements();
+  echoservo::estimation::HeartbeatEkfOptions o;
+  o.harmonics = static_cast<int>(state.range(0));
+  for (auto _ : state) {
+    HeartbeatEkf ekf(o);
+    for (std::size_t i = 0; !ekf.initialised(); ++i) ekf.Update(trace.t_s[i], trace.position_mm[i]);
+    benchmark::DoNotOptimize(ekf.rate_hz());
+  }
+}
+BENCHMARK(BM_EkfInitialisation)->Arg(0)->Arg(6)->Unit(benchmark::kMillisecond);
+
+void BM_ConstantVelocityKfUpdate(benchmark::State& state) {
+  Feed(state, [] { return echoservo::estimation::ConstantVelocityKf(); });
+}
+BENCHMARK(BM_ConstantVelocityKfUpdate);
+
+// The servo's 1 kHz call: position, velocity and acceleration of the exported model.
+void BM_FourierMotionEvaluate(benchmark::State& state) {
+  echoservo::estimation::HeartbeatEkfOptions o;
+  o.harmonics = static_cast<int>(state.range(0));
+  o.respiration = true;
+  HeartbeatEkf ekf(o);
+  const echoservo::estimation::MotionTrace& trace = Measurements();
+  for (std::size_t i = 0; i < trace.size() && trace.t_s[i] < 6.0; ++i)
+    ekf.Update(trace.t_s[i], trace.position_mm[i]);
+  const echoservo::estimation::FourierMotion motion = ekf.Motion();
+  double t = motion.t0_s;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(motion.Evaluate(t));
+    t += 0.001;
+  }
+}
+BENCHMARK(BM_FourierMotionEvaluate)->Arg(6)->Arg(12);
+
+// Exporting the model after an update (once per volume).
+void BM_EkfExportMotion(benchmark::State& state) {
+  HeartbeatEkf ekf;
+  const echoservo::estimation::MotionTrace& trace = Measurements();
+  for (std::size_t i = 0; i < trace.size() && trace.t_s[i] < 6.0; ++i)
+    ekf.Update(trace.t_s[i], trace.position_mm[i]);
+  for (auto _ : state) benchmark::DoNotOptimize(ekf.Motion());
+}
+BENCHMARK(BM_EkfExportMotion);
+
+}  // namespace
+
+BENCHMARK_MAIN();

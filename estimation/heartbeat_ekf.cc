@@ -1,0 +1,289 @@
+#include "estimation/heartbeat_ekf.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <vector>
+
+#include "estimation/harmonic_fit.h"
+
+namespace echoservo::estimation {
+namespace {
+
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr double kNoiseFloorMm = 0.02;
+constexpr double kNoiseAdaptation = 0.02;  // ~50 measurements (2 s at 25 vol/s)
+constexpr int kInitTrendOrder = 3;         // cubic: slow respiration within the window
+constexpr double kChoiceSplit = 0.6;       // harmonic choice: initialise on 60 %, score 40 %
+
+bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
+
+}  // namespace
+
+HeartbeatEkf::HeartbeatEkf(HeartbeatEkfOptions options) : o_(options) {
+  const bool ok =
+      o_.harmonics >= 0 && o_.harmonics <= kMaxHarmonics && o_.max_harmonics >= 1 &&
+      o_.max_harmonics <= kMaxHarmonics && Positive(o_.min_rate_hz) &&
+      o_.max_rate_hz > o_.min_rate_hz && Positive(o_.init_window_s) && std::isfinite(o_.noise_mm) &&
+      o_.noise_mm >= 0.0 && Positive(o_.coefficient_q_mm) && Positive(o_.offset_q_mm) &&
+      Positive(o_.offset_rate_q_mm_s) && Positive(o_.rate_q_rad_s) && Positive(o_.phase_q_rad) &&
+      Positive(o_.gate_sigma) && o_.max_rejections >= 1 && Positive(o_.max_phase_sd_rad) &&
+      std::isfinite(o_.horizon_s) && o_.horizon_s >= 0.0;
+  if (!ok) {
+    throw std::invalid_argument(
+        "heartbeat EKF: harmonics must be in [0, 12] (0: automatic), rates 0 < min < max, and "
+        "every noise, gate and window positive");
+  }
+  if (o_.init_window_s * o_.min_rate_hz < 1.0) {
+    throw std::invalid_argument("heartbeat EKF: the initialisation window (" +
+                                std::to_string(o_.init_window_s) +
+                                " s) must hold at least one beat at the lowest rate");
+  }
+}
+
+int HeartbeatEkf::StateSize() const { return FirstCoefficient() + 1 + 2 * (harmonics_ - 1) + 2; }
+
+double HeartbeatEkf::rate_hz() const { return initialised_ ? x_(PhaseIndex() + 1) / kTwoPi : 0.0; }
+
+double HeartbeatEkf::phase_sd_rad() const {
+  return initialised_ ? std::sqrt(std::max(p_(PhaseIndex(), PhaseIndex()), 0.0)) : 0.0;
+}
+
+int HeartbeatEkf::ChooseHarmonics() const {
+  // Filters with 1..max harmonics, each initialised on the first part of the buffer,
+  // predict the rest one measurement ahead; the smallest squared error wins.
+  const double split_s = std::max(kChoiceSplit * o_.init_window_s, 1.0 / o_.min_rate_hz);
+  std::vector<double> scores;
+  for (int n = 1; n <= o_.max_harmonics; ++n) {
+    HeartbeatEkfOptions sub = o_;
+    sub.harmonics = n;
+    sub.init_window_s = split_s;
+    HeartbeatEkf filter(sub);
+    double ss = 0.0;
+    try {
+      for (const auto& [t, z] : buffer_) {
+        if (filter.initialised()) ss += std::pow(z - filter.Predict(t), 2);
+        filter.Process(t, z);
+      }
+    } catch (const std::invalid_argument&) {
+      break;  // too many harmonics for this window or sampling rate
+    }
+    scores.push_back(ss);
+  }
+  // The fewest harmonics within (0.01 mm)² a sample of the best (ties on clean data).
+  const double best = *std::min_element(scores.begin(), scores.end());
+  const double slack = 1e-4 * static_cast<double>(buffer_.size());
+  for (std::size_t i = 0; i < scores.size(); ++i) {
+    if (scores[i] <= best + slack) return static_cast<int>(i) + 1;
+  }
+  return 1;
+}
+
+void HeartbeatEkf::Initialise() {
+  std::vector<double> t;
+  std::vector<double> z;
+  for (const auto& [ti, zi] : buffer_) {
+    t.push_back(ti);
+    z.push_back(zi);
+  }
+  // The rate from a search with its own (BIC) harmonic count, which resists sub-harmonics;
+  // the coefficients at the filter's count.
+  HarmonicFitOptions fo;
+  fo.min_rate_hz = o_.min_rate_hz;
+  fo.max_rate_hz = o_.max_rate_hz;
+  fo.max_harmonics = o_.max_harmonics;
+  fo.trend_order = kInitTrendOrder;
+  const double rate_hz =
+      FitHarmonics(t.data(), z.data(), t.size(), t.back(), fo).motion.frequency_hz;
+  const int count = o_.harmonics > 0 ? o_.harmonics : ChooseHarmonics();
+  const HarmonicFit fit =
+      FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.back(), rate_hz, count, kInitTrendOrder);
+  harmonics_ = fit.harmonics;
+  noise_mm_ = o_.noise_mm > 0.0 ? o_.noise_mm : std::max(fit.noise_mm, kNoiseFloorMm);
+
+  const int n = StateSize();
+  const int c0 = FirstCoefficient();
+  x_.setZero(n);
+  p_.setZero(n, n);
+  x_(0) = fit.motion.offset_mm;
+  if (o_.respiration) x_(1) = fit.motion.drift_mm_s;
+  x_(c0) = fit.motion.cos_mm[0];
+  for (int k = 2; k <= harmonics_; ++k) {
+    x_(c0 + 2 * k - 3) = fit.motion.cos_mm[static_cast<std::size_t>(k - 1)];
+    x_(c0 + 2 * k - 2) = fit.motion.sin_mm[static_cast<std::size_t>(k - 1)];
+  }
+  x_(PhaseIndex()) = fit.motion.phase0_rad;
+  x_(PhaseIndex() + 1) = kTwoPi * fit.motion.frequency_hz;
+
+  // Initial uncertainty: least-squares variances (≈ 2σ²/n per coefficient), inflated
+  // fourfold for the model's own approximation, and a broad phase and rate.
+  const double m = static_cast<double>(t.size());
+  const double coef_var = 8.0 * noise_mm_ * noise_mm_ / m + 0.01;
+  for (int i = 0; i < PhaseIndex(); ++i) p_(i, i) = coef_var;
+  if (o_.respiration) p_(1, 1) = 1.0;  // (1 mm/s)²
+  const double amp = std::max(std::abs(x_(c0)), 0.1);
+  p_(PhaseIndex(), PhaseIndex()) =
+      std::pow(std::max(0.05, 2.0 * noise_mm_ / amp / std::sqrt(m)), 2);
+  p_(PhaseIndex() + 1, PhaseIndex() + 1) = std::pow(kTwoPi * 0.05, 2);
+
+  t_ = t.back();
+  initialised_ = true;
+  ++initialisations_;
+  consecutive_rejections_ = 0;
+  buffer_.clear();
+  recent_.clear();
+}
+
+void HeartbeatEkf::TimeUpdate(double dt) {
+  if (dt <= 0.0) return;
+  const int n = StateSize();
+  const int th = PhaseIndex();
+  const int om = th + 1;
+  // x ← F x
+  x_(th) += x_(om) * dt;
+  if (o_.respiration) x_(0) += x_(1) * dt;
+  // P ← F P Fᵀ: F = I + dt·(e_θ e_ωᵀ [+ e_c e_ċᵀ]); rows then columns.
+  p_.row(th) += dt * p_.row(om);
+  if (o_.respiration) p_.row(0) += dt * p_.row(1);
+  p_.col(th) += dt * p_.col(om);
+  if (o_.respiration) p_.col(0) += dt * p_.col(1);
+  // + Q
+  const double qc = o_.coefficient_q_mm * o_.coefficient_q_mm * dt;
+  for (int i = FirstCoefficient(); i < th; ++i) p_(i, i) += qc;
+  const double qo = o_.offset_q_mm * o_.offset_q_mm;
+  p_(0, 0) += qo * dt;
+  if (o_.respiration) {
+    const double qr = o_.offset_rate_q_mm_s * o_.offset_rate_q_mm_s;
+    p_(0, 0) += qr * dt * dt * dt / 3.0;
+    p_(0, 1) += qr * dt * dt / 2.0;
+    p_(1, 0) += qr * dt * dt / 2.0;
+    p_(1, 1) += qr * dt;
+  }
+  const double qw = o_.rate_q_rad_s * o_.rate_q_rad_s;
+  const double qp = o_.phase_q_rad * o_.phase_q_rad;
+  p_(th, th) += qw * dt * dt * dt / 3.0 + qp * dt;
+  p_(th, om) += qw * dt * dt / 2.0;
+  p_(om, th) += qw * dt * dt / 2.0;
+  p_(om, om) += qw * dt;
+  (void)n;
+}
+
+double HeartbeatEkf::ShapeAt(double theta, Vector* h) const {
+  const int c0 = FirstCoefficient();
+  const double c1 = std::cos(theta);
+  const double s1 = std::sin(theta);
+  double z = x_(0) + x_(c0) * c1;
+  double dtheta = -x_(c0) * s1;
+  if (h != nullptr) {
+    h->setZero(StateSize());
+    (*h)(0) = 1.0;
+    (*h)(c0) = c1;
+  }
+  double ck = c1;
+  double sk = s1;
+  for (int k = 2; k <= harmonics_; ++k) {
+    const double next = ck * c1 - sk * s1;
+    sk = sk * c1 + ck * s1;
+    ck = next;
+    const double a = x_(c0 + 2 * k - 3);
+    const double b = x_(c0 + 2 * k - 2);
+    z += a * ck + b * sk;
+    if (h != nullptr) {
+      dtheta += k * (-a * sk + b * ck);
+      (*h)(c0 + 2 * k - 3) = ck;
+      (*h)(c0 + 2 * k - 2) = sk;
+    }
+  }
+  if (h != nullptr) (*h)(PhaseIndex()) = dtheta;
+  return z;
+}
+
+UpdateResult HeartbeatEkf::Process(double t_s, double z) {
+  if (!std::isfinite(t_s) || !std::isfinite(z)) {
+    throw std::invalid_argument("heartbeat EKF: a measurement or its time is NaN or infinite");
+  }
+  if (any_ && !(t_s > (initialised_ ? t_ : buffer_.empty() ? -INFINITY : buffer_.back().first))) {
+    throw std::invalid_argument("heartbeat EKF: measurement times must be strictly increasing");
+  }
+  any_ = true;
+  last_mm_ = z;
+  if (!initialised_) {
+    buffer_.emplace_back(t_s, z);
+    if (buffer_.back().first - buffer_.front().first < o_.init_window_s)
+      return UpdateResult::kBuffering;
+    Initialise();
+    return UpdateResult::kInitialised;
+  }
+
+  TimeUpdate(t_s - t_);
+  t_ = t_s;
+  if (phase_sd_rad() > o_.max_phase_sd_rad) {  // coasted too long: phase unknown
+    initialised_ = false;
+    buffer_.assign(1, {t_s, z});
+    return UpdateResult::kLost;
+  }
+  Vector h;
+  const double predicted = ShapeAt(x_(PhaseIndex()), &h);
+  const Vector ph = p_ * h;
+  const double s = h.dot(ph) + noise_mm_ * noise_mm_;
+  const double nu = z - predicted;
+  if (nu * nu > o_.gate_sigma * o_.gate_sigma * s) {
+    ++rejected_;
+    recent_.emplace_back(t_s, z);
+    if (++consecutive_rejections_ >= o_.max_rejections) {
+      initialised_ = false;
+      buffer_.assign(recent_.begin(), recent_.end());
+      recent_.clear();
+      return UpdateResult::kLost;
+    }
+    return UpdateResult::kRejected;
+  }
+  consecutive_rejections_ = 0;
+  recent_.clear();
+  if (o_.noise_mm == 0.0) {
+    // Innovation-based measurement noise: E[ν²] = HPHᵀ + R (exponential average).
+    const double r = std::max(nu * nu - (s - noise_mm_ * noise_mm_), kNoiseFloorMm * kNoiseFloorMm);
+    noise_mm_ = std::sqrt((1.0 - kNoiseAdaptation) * noise_mm_ * noise_mm_ + kNoiseAdaptation * r);
+  }
+  const Vector k = ph / s;
+  x_ += k * nu;
+  p_.noalias() -= k * ph.transpose();
+  p_ = 0.5 * (p_ + p_.transpose()).eval();
+  ++accepted_;
+  return UpdateResult::kAccepted;
+}
+
+double HeartbeatEkf::Predict(double t_s) const {
+  if (!initialised_) return last_mm_;
+  const double dt = t_s - t_;
+  const double z = ShapeAt(x_(PhaseIndex()) + x_(PhaseIndex() + 1) * dt, nullptr);
+  return o_.respiration ? z + x_(1) * dt : z;
+}
+
+FourierMotion HeartbeatEkf::Motion() const {
+  FourierMotion m;
+  if (!initialised_) {
+    m.t0_s = buffer_.empty() ? 0.0 : buffer_.back().first;
+    m.offset_mm = last_mm_;
+    m.valid_until_s = m.t0_s;
+    return m;
+  }
+  const int c0 = FirstCoefficient();
+  const int th = PhaseIndex();
+  m.t0_s = t_;
+  m.phase0_rad = x_(th);
+  m.frequency_hz = std::max(x_(th + 1) / kTwoPi, 1e-6);
+  m.offset_mm = x_(0);
+  m.drift_mm_s = o_.respiration ? x_(1) : 0.0;
+  m.cos_mm.push_back(x_(c0));
+  m.sin_mm.push_back(0.0);
+  for (int k = 2; k <= harmonics_; ++k) {
+    m.cos_mm.push_back(x_(c0 + 2 * k - 3));
+    m.sin_mm.push_back(x_(c0 + 2 * k - 2));
+  }
+  m.valid_until_s = t_ + o_.horizon_s;
+  return m;
+}
+
+}  // namespace echoservo::estimation

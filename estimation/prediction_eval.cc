@@ -1,0 +1,138 @@
+#include "estimation/prediction_eval.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+
+#include "estimation/harmonic_fit.h"
+
+namespace echoservo::estimation {
+namespace {
+
+struct Accumulator {
+  double ss = 0.0;
+  double abs = 0.0;
+  double max = 0.0;
+  std::size_t n = 0;
+  void Add(double e) {
+    ss += e * e;
+    abs += std::abs(e);
+    max = std::max(max, std::abs(e));
+    ++n;
+  }
+  PredictionScore Score(const std::string& name) const {
+    const double dn = static_cast<double>(std::max<std::size_t>(n, 1));
+    return {name, std::sqrt(ss / dn), abs / dn, max};
+  }
+};
+
+// The constant-velocity KF's acceleration density from the first window: the mean
+// square second difference over dt⁴ is the acceleration variance; q = that × dt (a
+// white acceleration held over one interval), floored so the filter never freezes.
+double CvAccelPsd(const MotionTrace& m, double window_s) {
+  double ss = 0.0;
+  std::size_t n = 0;
+  for (std::size_t i = 2; i < m.size() && m.t_s[i] - m.t_s.front() <= window_s; ++i) {
+    const double dt = 0.5 * (m.t_s[i] - m.t_s[i - 2]);
+    const double a =
+        (m.position_mm[i] - 2.0 * m.position_mm[i - 1] + m.position_mm[i - 2]) / (dt * dt);
+    ss += a * a * dt;
+    ++n;
+  }
+  return n > 0 ? std::max(ss / static_cast<double>(n), 1.0) : 1e4;
+}
+
+// The measurement noise the EKF will estimate, for the constant-velocity KF (the same
+// batch fit on the same window).
+double InitialNoise(const MotionTrace& m, const HeartbeatEkfOptions& e) {
+  std::size_t n = 0;
+  while (n < m.size() && m.t_s[n] - m.t_s.front() < e.init_window_s) ++n;
+  n = std::min(n + 1, m.size());
+  HarmonicFitOptions fo;
+  fo.min_rate_hz = e.min_rate_hz;
+  fo.max_rate_hz = e.max_rate_hz;
+  fo.harmonics = e.harmonics;
+  fo.max_harmonics = e.max_harmonics;
+  fo.trend_order = 3;
+  const HarmonicFit fit = FitHarmonics(m.t_s.data(), m.position_mm.data(), n, m.t_s[n - 1], fo);
+  return std::max(fit.noise_mm, 0.02);
+}
+
+}  // namespace
+
+PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions& o) {
+  ValidateMotionTrace(trace);
+  if (o.truth != nullptr) ValidateMotionTrace(*o.truth);
+  if (!(std::isfinite(o.latency_s) && o.latency_s >= 0.0 && o.latency_s <= 2.0)) {
+    throw std::invalid_argument("--latency must be in [0, 2] s");
+  }
+  const MotionTrace measured =
+      o.measurement_rate_hz > 0.0 ? ResampleTrace(trace, o.measurement_rate_hz) : trace;
+  const MotionTrace& reference = o.truth != nullptr ? *o.truth : trace;
+  const double needed = o.ekf.init_window_s + o.latency_s;
+  if (measured.size() < 2 || measured.duration_s() <= needed) {
+    throw std::invalid_argument(
+        trace.source + ": the trace spans " + std::to_string(trace.duration_s()) +
+        " s; the predictor needs more than " + std::to_string(needed) +
+        " s (its initialisation window, at least one beat at the lowest rate, plus the latency)");
+  }
+
+  PredictionRun run;
+  run.measurements = measured.size();
+  run.gaps = FindGaps(measured).size();
+  run.measurement_rate_hz = 1.0 / MedianInterval(measured);
+  HeartbeatEkf ekf(o.ekf);
+  ConstantVelocityKfOptions cvo;
+  cvo.accel_psd_mm2_s3 = CvAccelPsd(measured, o.ekf.init_window_s);
+  cvo.noise_mm = o.ekf.noise_mm > 0.0 ? o.ekf.noise_mm : InitialNoise(measured, o.ekf);
+  run.cv_accel_psd_mm2_s3 = cvo.accel_psd_mm2_s3;
+  std::vector<std::unique_ptr<MotionPredictor>> baselines;
+  baselines.push_back(std::make_unique<ZeroOrderHold>());
+  baselines.push_back(std::make_unique<LinearExtrapolation>());
+  baselines.push_back(std::make_unique<ConstantVelocityKf>(cvo));
+  Accumulator ekf_acc;
+  std::vector<Accumulator> base_acc(baselines.size());
+  bool scoring = false;
+  for (std::size_t i = 0; i < measured.size(); ++i) {
+    const double t = measured.t_s[i];
+    const double z = measured.position_mm[i];
+    ekf.Update(t, z);
+    for (auto& b : baselines) b->Update(t, z);
+    if (!scoring && ekf.initialised()) {
+      scoring = true;
+      run.scored_from_s = t;
+    }
+    if (!scoring) continue;
+    const double target_t = t + o.latency_s;
+    if (target_t > reference.t_s.back()) break;
+    double truth = 0.0;
+    if (!InterpolateTrace(reference, target_t, truth)) {
+      ++run.unscored_in_gaps;
+      continue;
+    }
+    const double e = ekf.Predict(target_t) - truth;
+    ekf_acc.Add(e);
+    if (o.keep_errors) run.ekf_errors_mm.push_back(e);
+    for (std::size_t b = 0; b < baselines.size(); ++b)
+      base_acc[b].Add(baselines[b]->Predict(target_t) - truth);
+  }
+  if (ekf_acc.n == 0) {
+    throw std::invalid_argument(trace.source +
+                                ": nothing to score: no measurement after the predictor's "
+                                "initialisation has a reference `latency` later");
+  }
+  run.scored = ekf_acc.n;
+  run.ekf = ekf_acc.Score(ekf.name());
+  for (std::size_t b = 0; b < baselines.size(); ++b)
+    run.baselines.push_back(base_acc[b].Score(baselines[b]->name()));
+  run.harmonics = ekf.harmonics();
+  run.rate_hz = ekf.rate_hz();
+  run.noise_mm = ekf.noise_mm();
+  run.accepted = ekf.accepted();
+  run.rejected = ekf.rejected();
+  run.initialisations = ekf.initialisations();
+  return run;
+}
+
+}  // namespace echoservo::estimation

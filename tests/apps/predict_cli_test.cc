@@ -1,0 +1,109 @@
+// End-to-end tests of `echoservo predict` and of the motion lab through the CLI: the
+// binary runs as a user would run it, on the real phantom trace and on traces written
+// by `echoservo sim motion`; bad input fails with an error naming the file, line, column.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "tests/test_util/cli_runner.h"
+#include "tests/test_util/expect_error.h"
+#include "tests/test_util/temp_dir.h"
+
+namespace echoservo {
+namespace {
+
+using echoservo::testing::ExpectContains;
+using echoservo::testing::RunCli;
+using echoservo::testing::RunResult;
+using echoservo::testing::TempDir;
+
+const std::string kPhantom = std::string(ECHOSERVO_DATA_DIR) + "/heart_motion/phantom_20hz.csv";
+
+TEST(PredictCli, PhantomJsonHasTheEkfAndEveryBaseline) {
+  const RunResult r = RunCli("predict " + kPhantom + " --latency 0.1 --column POI_z --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const double zoh = j["baselines"]["zero_order_hold"]["rms_mm"];
+  EXPECT_LE(3.0 * j["ekf_rms_mm"].get<double>(), zoh);
+  for (const char* b : {"linear_extrapolation", "constant_velocity_kf"}) {
+    EXPECT_GT(j["baselines"][b]["rms_mm"].get<double>(), j["ekf_rms_mm"].get<double>()) << b;
+  }
+  EXPECT_EQ(j["column"], "POI_z");
+  EXPECT_EQ(j["measurements"], 750);
+  EXPECT_GT(j["scored"].get<int>(), 600);
+}
+
+TEST(PredictCli, SyntheticTraceAtTheVolumeRateMeetsTheIssueFigure) {
+  TempDir dir("predict_cli", true);
+  const std::string trace = dir.str() + "/mitral.csv";
+  ASSERT_EQ(RunCli("sim motion --out " + trace).rc, 0);
+  const RunResult r = RunCli("predict " + trace + " --rate 25 --latency 0.1 --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["column"], "position");
+  EXPECT_NEAR(j["measurement_rate_hz"].get<double>(), 25.0, 1e-6);
+  EXPECT_LE(j["ekf_rms_mm"].get<double>(), 0.5);
+  EXPECT_LE(5.0 * j["ekf_rms_mm"].get<double>(),
+            j["baselines"]["zero_order_hold"]["rms_mm"].get<double>());
+  // Human-readable output: the same table.
+  const RunResult text = RunCli("predict " + trace + " --rate 25 --harmonics 6 --respiration");
+  ASSERT_EQ(text.rc, 0) << text.err;
+  for (const char* part : {"heartbeat_ekf", "zero_order_hold", "linear_extrapolation",
+                           "constant_velocity_kf", "6 harmonics", "respiration term on"}) {
+    ExpectContains(text.out, part);
+  }
+}
+
+TEST(PredictCli, BadTracesFailWithWhereAndWhy) {
+  TempDir dir("predict_cli", true);
+  auto run = [&](const std::string& name, const std::string& text, const std::string& extra = "") {
+    const std::string path = dir.str() + "/" + name;
+    std::ofstream(path) << text;
+    return RunCli("predict " + path + " " + extra);
+  };
+  RunResult r = run("empty.csv", "");
+  EXPECT_NE(r.rc, 0);
+  ExpectContains(r.err, "empty.csv: empty file");
+  r = run("nan.csv", "t,x\n0,1\n0.05,nan\n");
+  EXPECT_NE(r.rc, 0);
+  ExpectContains(r.err, "nan.csv: line 3: column 'x': NaN");
+  r = run("dup.csv", "t,x\n0,1\n0.05,2\n0.05,3\n");
+  ExpectContains(r.err, "dup.csv: line 4: column 't': times must be strictly increasing");
+  std::string short_trace = "t,x\n";
+  for (int i = 0; i < 40; ++i)
+    short_trace += std::to_string(i * 0.05) + "," + std::to_string(i % 17) + "\n";
+  r = run("short.csv", short_trace);
+  EXPECT_NE(r.rc, 0);
+  ExpectContains(r.err, "the predictor needs more than");
+  r = RunCli("predict " + kPhantom + " --column nope");
+  ExpectContains(r.err, "missing required column 'nope'");
+  r = RunCli("predict " + kPhantom + " --harmonics 40");
+  ExpectContains(r.err, "--harmonics");
+}
+
+TEST(PredictCli, MotionLabNamesTheHiddenRespiration) {
+  TempDir dir("predict_cli", true);
+  const std::string trace = dir.str() + "/resp.csv";
+  ASSERT_EQ(
+      RunCli("sim motion --out " + trace +
+             " --duration 30 --sample-rate 25 --rsa 0 --wander 0 --harmonics 6 --respiration 2")
+          .rc,
+      0);
+  const RunResult r = RunCli("lab diagnose " + trace + " --model heartbeat:6 --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_FALSE(j["adequate"].get<bool>());
+  EXPECT_EQ(j["candidates"][0]["effect"], "respiration");
+  const RunResult c = RunCli("lab compare " + trace + " --model heartbeat:6+respiration --json");
+  ASSERT_EQ(c.rc, 0) << c.err;
+  const auto cj = nlohmann::json::parse(c.out);
+  EXPECT_NEAR(cj["params"]["respiration_rate"]["value"].get<double>(), 0.25, 0.01);
+  const RunResult bad = RunCli("lab compare " + trace + " --model heartbeat:6+wobble");
+  EXPECT_NE(bad.rc, 0);
+  ExpectContains(bad.err, "unknown term 'wobble'");
+}
+
+}  // namespace
+}  // namespace echoservo
