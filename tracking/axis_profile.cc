@@ -128,20 +128,28 @@ class GaussianTables {
 // each subset of the non-negative terms.
 double SurfaceFitResidual(const std::vector<double>& amp, double s0, double sigma) {
   static const GaussianTables tables;
-  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
-  double btb = 0.0;
+  // Normal equations of the rows (1, g_k, Φ_k), summed as scalars.
+  double sg = 0, sp = 0, sgg = 0, sgp = 0, spp = 0, sa = 0, sag = 0, sap = 0, btb = 0;
   for (std::size_t k = 0; k < amp.size(); ++k) {
     double g, phi;
     tables((static_cast<double>(k) - s0) / sigma, g, phi);
-    const Eigen::Vector3d row(1.0, g, phi);
-    ata.selfadjointView<Eigen::Lower>().rankUpdate(row);
-    atb += row * amp[k];
-    btb += amp[k] * amp[k];
+    const double a = amp[k];
+    sg += g;
+    sp += phi;
+    sgg += g * g;
+    sgp += g * phi;
+    spp += phi * phi;
+    sa += a;
+    sag += a * g;
+    sap += a * phi;
+    btb += a * a;
   }
-  ata = ata.selfadjointView<Eigen::Lower>();
+  Eigen::Matrix3d ata;
+  ata << static_cast<double>(amp.size()), sg, sp, sg, sgg, sgp, sp, sgp, spp;
+  const Eigen::Vector3d atb(sa, sag, sap);
+  // Both terms first: when feasible, no subset fits better.
   double best = std::numeric_limits<double>::infinity();
-  for (int mask = 1; mask <= 3; ++mask) {
+  for (int mask : {3, 1, 2}) {
     Eigen::Matrix3d m = ata;
     Eigen::Vector3d r = atb;
     for (int c = 1; c <= 2; ++c)
@@ -154,6 +162,7 @@ double SurfaceFitResidual(const std::vector<double>& amp, double s0, double sigm
     const Eigen::Vector3d x = m.ldlt().solve(r);
     if (x[1] < 0.0 || x[2] < 0.0) continue;
     best = std::min(best, btb - 2.0 * x.dot(atb) + x.dot(ata * x));
+    if (mask == 3) break;
   }
   return best;
 }

@@ -147,6 +147,9 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
   if (L1.cells.size() < 4) return out;
 
   RadonSearchResult b;
+  // The refinement: a full search's directions are ~3° apart, so two passes from
+  // fine_cone_rad; tracking's cone grid is already 1.6° fine, so one pass within a spacing.
+  FineSearch fine{options_.fine_cone_rad, 2};
   RadonWindow window_storage;
   const RadonWindow* window = nullptr;
   if (previous) {
@@ -158,6 +161,7 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
     // Coarse to fine over the cone's grid too (a checkerboard, then the rest next to its best
     // directions): only the best line is used here.
     const double spacing_rad = 2 * options_.tracking_cone_rad / (steps - 1);
+    fine = FineSearch{spacing_rad, 1};
     b = SearchDirectionsCoarseToFine(L1, DirectionCone(pd, options_.tracking_cone_rad, steps),
                                      CoarseToFineOptions{2, 8, 1.5 * spacing_rad}, window);
   } else {
@@ -206,7 +210,7 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
       peak = b.peaks[order[next]];
     }
     tried.push_back(dir);
-    CatheterDetection d = EvaluateLine(v, L1, L2, dir, peak, window, bg, scene);
+    CatheterDetection d = EvaluateLine(v, L1, L2, dir, peak, fine, window, bg, scene);
     d.tracked = previous != nullptr;
     if (d.found) return d;
     if (c == 0 || d.confidence > best.confidence) best = d;
@@ -216,16 +220,17 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
 
 CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const RadonLevel& L1, const RadonLevel& L2,
                                               const Eigen::Vector3d& direction, const RadonPeak& coarse_peak,
-                                              const RadonWindow* window, double bg, const SceneBaseline& scene) const {
+                                              const FineSearch& fine, const RadonWindow* window, double bg,
+                                              const SceneBaseline& scene) const {
   CatheterDetection out;
   out.baseline = scene;
   // Refine at the finer level, near the coarse line.
   RadonWindow near{PeakLine(L1, direction, coarse_peak), 2 * L1.bin_mm};
-  double cone = options_.fine_cone_rad;
+  double cone = fine.cone_rad;
   RadonSearchResult f;
   f.direction = direction;
   f.peak = coarse_peak;
-  for (int pass = 0; pass < 2; ++pass) {
+  for (int pass = 0; pass < fine.passes; ++pass) {
     RadonSearchResult g = SearchDirections(L2, DirectionCone(f.direction, cone, options_.fine_steps), &near);
     if (g.peak.score > 0) {
       f = g;

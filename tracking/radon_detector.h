@@ -129,11 +129,18 @@ class RadonDetector {
 
  private:
   CatheterDetection Run(const imaging::Volume& volume, const Line3* previous, const SceneBaseline* scene) const;
+  // The fine level's direction refinement: `passes` grids of fine_steps² directions, the
+  // first within cone_rad, each next one (fine_steps − 1)/2 times narrower.
+  struct FineSearch {
+    double cone_rad;
+    int passes;
+  };
   // Refines one coarse line (direction and peak) and judges it: axis fit, tip, target, tube
   // check, confidence.
-  CatheterDetection EvaluateLine(const imaging::Volume& volume, const RadonLevel& coarse, const RadonLevel& fine,
+  CatheterDetection EvaluateLine(const imaging::Volume& volume, const RadonLevel& coarse, const RadonLevel& fine_level,
                                  const Eigen::Vector3d& direction, const RadonPeak& coarse_peak,
-                                 const RadonWindow* window, double background, const SceneBaseline& scene) const;
+                                 const FineSearch& fine, const RadonWindow* window, double background,
+                                 const SceneBaseline& scene) const;
 
   RadonDetectorOptions options_;
   std::optional<CatheterDetection> previous_;

@@ -1,8 +1,11 @@
 #include "tracking/tube_check.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -32,13 +35,16 @@ double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, do
     const double x = v.Sample(p);
     return std::isnan(x) ? 0.0 : x;
   };
-  std::vector<double> per_section;
   constexpr int kRadial = 3;
   constexpr double kArcStepMm = 0.25;
-  for (double s = s_from; s <= s_to; s += o.step_mm) {
+  // One section every step_mm, in parallel (TBB); a section outside the volume is NaN.
+  const int sections = s_to >= s_from ? static_cast<int>(std::floor((s_to - s_from) / o.step_mm)) + 1 : 0;
+  std::vector<double> value(static_cast<std::size_t>(std::max(0, sections)), std::numeric_limits<double>::quiet_NaN());
+  tbb::parallel_for(0, std::max(0, sections), [&](int i) {
+    const double s = s_from + i * o.step_mm;
     const Eigen::Vector3d c = axis.point + s * axis.direction;
     const double centre = v.Sample(c);
-    if (std::isnan(centre)) continue;
+    if (std::isnan(centre)) return;
     const Eigen::Vector3d b = BeamDirectionAt(v, c);
     Eigen::Vector3d behind = b - b.dot(axis.direction) * axis.direction;
     const bool has_behind = behind.norm() > 1e-6;
@@ -70,8 +76,11 @@ double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, do
       std::sort(at_r.begin(), at_r.end());
       surround = std::max(surround, at_r[kRadial / 2]);
     }
-    per_section.push_back(std::clamp(1.0 - amplitude(surround) / amplitude(core), 0.0, 1.0));
-  }
+    value[static_cast<std::size_t>(i)] = std::clamp(1.0 - amplitude(surround) / amplitude(core), 0.0, 1.0);
+  });
+  std::vector<double> per_section;
+  for (double x : value)
+    if (!std::isnan(x)) per_section.push_back(x);
   if (per_section.empty()) return 0.0;
   auto mid = per_section.begin() + static_cast<long>(per_section.size() / 2);
   std::nth_element(per_section.begin(), mid, per_section.end());
