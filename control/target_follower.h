@@ -1,0 +1,125 @@
+// The live servo's reference: keep the catheter tip a chosen standoff short of the moving
+// target, along the catheter axis, from the tracker's predicted motion model.
+//
+// The tracker publishes, per volume, the target's predicted motion along the catheter axis
+// as a Fourier model (estimation/fourier_motion.h; the axis coordinate s in mm of the image
+// frame, on the pipeline clock in s, valid until `valid_until_s`) and the tip's axis
+// coordinate at acquisition. The servo knows its tip in catheter coordinates x (mm,
+// hw::iface::kTipPosition). The two differ by an offset c = s_tip − x_tip, measured at each
+// volume's acquisition time against the servo's own tip history and low-pass filtered
+// (imaging noise ~0.2 mm). The reference is x_ref(t) = s_target(t) − standoff − c, with the
+// model's velocity and acceleration for feed-forward.
+//
+// Safety supervisor (evaluated every cycle by Update): disabled until Enable; a stop command
+// holds the tip where it is within the cycle it arrives in; when the newest estimate is
+// older than `stale_after_s` or past its validity horizon the tip holds (fault
+// kStaleEstimate), and after `retract_after_s` more it retracts by `retract_mm` at
+// `retract_speed_mm_s`; references are clamped to [travel_min_mm, travel_max_mm]. Rejected
+// estimates (non-finite, out of range, acquired after they were published or in the
+// future) are counted and leave the reference unchanged.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <utility>
+
+#include "control/trajectory.h"
+#include "estimation/fourier_motion.h"
+
+namespace echoservo::control {
+
+// One tracker output, as the servo receives it.
+struct TargetEstimateInput {
+  double acquired_s = 0.0;   // the volume's acquisition time (pipeline clock)
+  double published_s = 0.0;  // when the tracker published it
+  estimation::FourierMotion target_motion;  // target's axis coordinate s(t), mm
+  double tip_axis_mm = 0.0;  // the tracked tip's axis coordinate at acquisition
+  double confidence = 0.0;   // detector confidence, [0, 1]
+};
+
+struct FollowerConfig {
+  double standoff_mm = 3.0;        // tip held this far short of the target, [0, 30]
+  double stale_after_s = 0.25;     // no fresh estimate for this long: hold
+  double retract_after_s = 0.5;    // holding this long: retract
+  double retract_mm = 5.0;         // retraction distance
+  double retract_speed_mm_s = 20.0;
+  double travel_min_mm = -15.0;    // reference clamp (catheter coordinates)
+  double travel_max_mm = 15.0;
+  double offset_gain = 0.2;        // low-pass gain of the image↔catheter offset per volume
+  double min_confidence = 0.5;     // estimates below are ignored (counted)
+  double max_future_s = 0.05;      // acquisition/publication this far ahead of now: rejected
+  // Throws std::invalid_argument naming the field.
+  void Validate() const;
+};
+
+enum class FollowerMode : std::uint8_t { kDisabled, kFollowing, kHolding, kRetracting, kStopped };
+std::string ToString(FollowerMode mode);
+
+// Fault bits, reported on the state topic.
+namespace follower_fault {
+inline constexpr std::uint32_t kStaleEstimate = 1u << 0;
+inline constexpr std::uint32_t kRejectedEstimate = 1u << 1;
+inline constexpr std::uint32_t kTravelLimit = 1u << 2;
+inline constexpr std::uint32_t kStopRequested = 1u << 3;
+inline constexpr std::uint32_t kRetracted = 1u << 4;
+}  // namespace follower_fault
+
+struct FollowerCounters {
+  std::uint64_t accepted = 0;
+  std::uint64_t rejected_non_finite = 0;
+  std::uint64_t rejected_range = 0;
+  std::uint64_t rejected_time = 0;
+  std::uint64_t rejected_confidence = 0;
+  std::uint64_t stale_events = 0;
+};
+
+class TargetFollower final : public Trajectory {
+ public:
+  // Throws std::invalid_argument for a bad config.
+  explicit TargetFollower(FollowerConfig config);
+
+  // Commands. Enable resumes following (from stop, hold or retraction) at the next
+  // estimate; Stop holds the current tip at once.
+  void Enable(double now_s);
+  void Stop(double now_s);
+  // Throws std::invalid_argument outside [0, 30] mm or non-finite.
+  void SetStandoff(double standoff_mm);
+
+  // A tracker estimate; false (and counted) when rejected. Uses the servo's tip history.
+  bool Accept(const TargetEstimateInput& estimate, double now_s);
+  // Every servo cycle, before Evaluate: records the tip and runs the supervisor.
+  void Update(double now_s, double tip_mm);
+
+  MotionSample Evaluate(double t_s) const override;
+  std::string name() const override { return "target_follower"; }
+
+  FollowerMode mode() const { return mode_; }
+  std::uint32_t faults() const { return faults_; }
+  const FollowerCounters& counters() const { return counters_; }
+  double offset_mm() const { return offset_mm_; }
+  bool has_estimate() const { return has_estimate_; }
+  double newest_acquired_s() const { return estimate_.acquired_s; }
+  const FollowerConfig& config() const { return config_; }
+
+ private:
+  double TipAt(double t_s) const;  // the servo's tip history, interpolated
+  void Hold(double now_s, std::uint32_t fault);
+  MotionSample Clamp(MotionSample m) const;  // sets kTravelLimit when it clamps
+
+  FollowerConfig config_;
+  FollowerMode mode_ = FollowerMode::kDisabled;
+  mutable std::uint32_t faults_ = 0;  // Evaluate (const, per cycle) flags the travel limit
+  FollowerCounters counters_;
+  TargetEstimateInput estimate_;
+  bool has_estimate_ = false;
+  bool offset_known_ = false;
+  double offset_mm_ = 0.0;
+  double last_estimate_s_ = -1e300;  // receipt time of the newest accepted estimate
+  double hold_mm_ = 0.0;
+  double hold_since_s_ = 0.0;
+  double tip_mm_ = 0.0;
+  std::deque<std::pair<double, double>> tip_history_;  // (t, tip), last ~0.5 s
+};
+
+}  // namespace echoservo::control
