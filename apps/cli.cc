@@ -3,6 +3,7 @@
 #include "apps/commands/bench_commands.h"
 #include "apps/commands/imaging_commands.h"
 #include "apps/commands/lab_commands.h"
+#include "apps/commands/live_commands.h"
 #include "apps/commands/motion_commands.h"
 
 #include <CLI/CLI.hpp>
@@ -24,6 +25,7 @@ int RunCli(int argc, char** argv) {
   AddRenderCommand(app);
   AddStreamCommands(app);
   AddBenchCommands(app);
+  AddLiveCommands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,354 @@
+#include "apps/live/demo_run.h"
+
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <deque>
+#include <fstream>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <random>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+#include "control/servo_loop.h"
+#include "control/target_follower.h"
+#include "control/track_experiment.h"
+#include "control/trajectory.h"
+#include "estimation/heartbeat_ekf.h"
+#include "hw/seed_plant.h"
+#include "hw/sim_em_tracker.h"
+#include "hw/simulated_catheter.h"
+#include "imaging/sim/catheter_scene.h"
+#include "imaging/sim/simulated_scanner.h"
+#include "tracking/radon_detector.h"
+
+namespace echoservo::live {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// The scanner's catheter advance at the plant's tip position 0: the tip then rests 5.5 mm
+// short of the annulus's near face, so the servo follows it with a few mm of travel.
+constexpr double kAdvanceAtZeroMm = 8.0;
+
+double Percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t i = std::min(v.size() - 1, static_cast<std::size_t>(std::ceil(p * v.size())) - (p > 0 ? 1 : 0));
+  return v[i];
+}
+
+// A delivered volume, waiting for the tracker.
+struct Delivery {
+  imaging::Volume volume;
+  double acquired_s;
+  double deliver_s;
+};
+
+// What the tracker hands the servo (the in-process link).
+struct Mailbox {
+  std::mutex m;
+  std::uint64_t seq = 0;
+  control::TargetEstimateInput estimate;
+  double arrived_s = 0.0;
+};
+
+class CsvFile {
+ public:
+  CsvFile() = default;
+  CsvFile(const std::filesystem::path& dir, const char* name, const std::string& header) {
+    if (dir.empty()) return;
+    out_.open(dir / name);
+    if (!out_) throw std::runtime_error("demo: cannot write " + (dir / name).string());
+    out_ << header << '\n';
+  }
+  void Row(const std::string& line) {
+    if (out_.is_open()) out_ << line << '\n';
+  }
+
+ private:
+  std::ofstream out_;
+};
+
+std::string Fmt(const char* f, auto... args) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf, f, args...);
+  return buf;
+}
+
+}  // namespace
+
+void DemoOptions::Validate() const {
+  auto bad = [](const std::string& f, const std::string& why) {
+    throw std::invalid_argument("demo: " + f + " " + why);
+  };
+  if (!(duration_s > 0 && duration_s <= 3600)) bad("--duration", "must be in (0, 3600] s");
+  if (!(rate_hz > 0 && rate_hz <= 60)) bad("--rate", "must be in (0, 60] vol/s");
+  if (!(delay_min_s >= 0 && delay_max_s >= delay_min_s && delay_max_s <= 1)) bad("--delay", "must satisfy 0 ≤ min ≤ max ≤ 1 s");
+  if (!(heart_rate_bpm >= 30 && heart_rate_bpm <= 180)) bad("--heart-rate", "must be in [30, 180] bpm");
+  if (!(target_p2p_mm > 0 && target_p2p_mm <= 20)) bad("--target-p2p", "must be in (0, 20] mm");
+  if (!(standoff_mm >= 0 && standoff_mm <= 30)) bad("--standoff", "must be in [0, 30] mm");
+  if (!(metrics_start_s >= 0 && metrics_start_s < duration_s)) bad("--metrics-start", "must be in [0, duration)");
+}
+
+DemoResult RunDemo(const DemoOptions& o) {
+  o.Validate();
+  if (!o.out_dir.empty()) std::filesystem::create_directories(o.out_dir);
+  auto log = [&](const std::string& s) {
+    if (o.log) o.log(s);
+  };
+
+  // The scene: the default water-tank catheter pose, the annulus moving along its normal
+  // with the mitral trajectory, the catheter advanced to the plant's tip.
+  imaging::sim::SimulatedScannerOptions so;
+  imaging::sim::PlaceCatheterScene({0.0, 10.0, 60.0, 0.0, kAdvanceAtZeroMm}, so);
+  so.rate_hz = o.rate_hz;
+  so.seed = o.seed;
+  const std::unique_ptr<control::Trajectory> target_motion =
+      control::MakeTrajectory(Fmt("mitral:%g:%g", o.heart_rate_bpm, o.target_p2p_mm));
+  std::atomic<double> plant_tip_mm{0.0};
+  const imaging::sim::CatheterPose rest_pose = so.catheter_pose;
+  so.catheter_pose_at = [&](double) {
+    imaging::sim::CatheterPose p = rest_pose;
+    p.advance_mm = rest_pose.advance_mm + plant_tip_mm.load();
+    return p;
+  };
+  so.target_displacement_mm = [&](double t) { return target_motion->Evaluate(t).position_mm; };
+  imaging::sim::SimulatedScanner scanner(so);
+
+  // Ground truth in the image frame as functions of time (the plant's tip, the displaced
+  // annulus), for the figures and truth.csv.
+  const auto& cg = so.catheter_geometry;
+  const Eigen::Isometry3d base = rest_pose.base_to_world;
+  auto tip_image = [&](double tip_mm) {
+    return scanner.WorldToImage(base * Eigen::Vector3d(0, 0, rest_pose.advance_mm + tip_mm + cg.sheath_length_mm + cg.wire_protrusion_mm));
+  };
+  const Eigen::Vector3d axis_image =
+      (scanner.WorldToImage(base * Eigen::Vector3d(0, 0, 1)) - scanner.WorldToImage(base * Eigen::Vector3d::Zero())).normalized();
+  const Eigen::Vector3d displacement_image =
+      scanner.WorldToImage(so.annulus_to_world.linear().col(2)) - scanner.WorldToImage(Eigen::Vector3d::Zero());
+  const auto first = scanner.Render(0.0);
+  if (!first.truth || !first.truth->target_visible) throw std::logic_error("demo: the scene's target is not visible");
+  const Eigen::Vector3d target0 = first.truth->target_mm;
+  const double d0 = target_motion->Evaluate(0.0).position_mm;
+  auto target_image = [&](double t) { return Eigen::Vector3d(target0 + (target_motion->Evaluate(t).position_mm - d0) * displacement_image); };
+  auto desired_tip = [&](double t) { return Eigen::Vector3d(target_image(t) - o.standoff_mm * axis_image); };
+
+  // The EM tracker: its own frame and clock.
+  hw::SimEmTrackerOptions eo;
+  eo.image_to_em = Eigen::Translation3d(120.0, -35.0, 210.0) * Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized());
+  eo.clock_offset_s = 0.0375;
+  eo.seed = o.seed + 11;
+  const Eigen::Isometry3d em_to_image = eo.image_to_em.inverse();
+
+  CsvFile targets_csv(o.out_dir, "targets.csv",
+                      "acquired_s,arrived_s,published_s,found,target_x_mm,target_y_mm,target_z_mm,tip_x_mm,tip_y_mm,"
+                      "tip_z_mm,axis_x,axis_y,axis_z,confidence");
+  CsvFile servo_csv(o.out_dir, "servo.csv", "t_s,mode,setpoint_mm,base_mm,tip_estimate_mm,faults");
+  CsvFile latency_csv(o.out_dir, "latency.csv", "arrived_s,applied_s");
+  CsvFile em_csv(o.out_dir, "em.csv", hw::EmLogHeader());
+  CsvFile truth_csv(o.out_dir, "truth.csv", "t_s,target_x_mm,target_y_mm,target_z_mm,tip_x_mm,tip_y_mm,tip_z_mm");
+
+  DemoResult result;
+  std::atomic<bool> stop{false};
+  std::mutex queue_m;
+  std::condition_variable queue_cv;
+  std::deque<Delivery> queue;
+  Mailbox mailbox;
+  std::atomic<std::uint64_t> dropped{0}, detected{0}, volumes{0};
+  const Clock::time_point start = Clock::now() + std::chrono::milliseconds(50);
+  auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
+  auto at = [&](double t_s) { return start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(t_s)); };
+
+  // Scanner: acquire at k / rate, render on one TBB thread, queue for delivery after the delay.
+  std::thread scanner_thread([&] {
+    tbb::task_arena one(1);
+    std::mt19937_64 rng(o.seed + 3);
+    std::uniform_real_distribution<double> delay(o.delay_min_s, o.delay_max_s);
+    double last_deliver = 0.0;
+    for (std::int64_t k = 0; !stop; ++k) {
+      const double t_acq = static_cast<double>(k) / o.rate_hz;
+      if (t_acq > o.duration_s) break;
+      std::this_thread::sleep_until(at(t_acq));
+      std::optional<imaging::SourceFrame> frame;
+      one.execute([&] { frame = scanner.Next(); });
+      if (!frame) break;
+      ++volumes;
+      last_deliver = std::max(last_deliver, t_acq + delay(rng));
+      {
+        std::lock_guard lock(queue_m);
+        queue.push_back({std::move(frame->volume), t_acq, last_deliver});
+      }
+      queue_cv.notify_one();
+    }
+  });
+
+  // Tracker: detect, update the EKF with the target's axis coordinate, publish the motion.
+  std::thread tracker_thread([&] {
+    tracking::RadonDetector detector;
+    estimation::HeartbeatEkfOptions ekf_options;
+    ekf_options.init_window_s = 2.0;
+    estimation::HeartbeatEkf ekf(ekf_options);
+    std::optional<tracking::Line3> reference;  // the axis coordinates' reference line
+    while (true) {
+      std::optional<Delivery> next;
+      {
+        std::unique_lock lock(queue_m);
+        queue_cv.wait_for(lock, std::chrono::milliseconds(50), [&] { return !queue.empty() || stop; });
+        if (queue.empty()) {
+          if (stop) break;
+          continue;
+        }
+        next.emplace(std::move(queue.front()));
+        queue.pop_front();
+      }
+      const Delivery& d = *next;
+      std::this_thread::sleep_until(at(d.deliver_s));
+      const double arrived = now_s();
+      const tracking::CatheterDetection det = detector.Track(d.volume);
+      const bool ok = det.found && det.target_found;
+      if (!ok) {
+        ++dropped;
+        targets_csv.Row(Fmt("%.6f,%.6f,,0,,,,,,,,,,%.3f", d.acquired_s, arrived, det.confidence));
+        continue;
+      }
+      ++detected;
+      if (!reference) reference = det.axis;
+      const double s_target = (det.target_mm - reference->point).dot(reference->direction);
+      const double s_tip = (det.tip_mm - reference->point).dot(reference->direction);
+      ekf.Process(d.acquired_s, s_target);
+      const double published = now_s();
+      if (ekf.initialised()) {
+        std::lock_guard lock(mailbox.m);
+        mailbox.estimate = control::TargetEstimateInput{d.acquired_s, published, ekf.Motion(), s_tip, det.confidence};
+        mailbox.arrived_s = arrived;
+        ++mailbox.seq;
+      }
+      targets_csv.Row(Fmt("%.6f,%.6f,%.6f,1,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.6f,%.6f,%.6f,%.3f", d.acquired_s, arrived,
+                          published, det.target_mm.x(), det.target_mm.y(), det.target_mm.z(), det.tip_mm.x(),
+                          det.tip_mm.y(), det.tip_mm.z(), det.axis.direction.x(), det.axis.direction.y(),
+                          det.axis.direction.z(), det.confidence));
+    }
+    result.ekf_harmonics = ekf.harmonics();
+    result.ekf_rate_hz = ekf.rate_hz();
+  });
+
+  // Servo: 1 kHz on absolute deadlines.
+  std::vector<double> latency_ms;
+  double em_sq = 0.0, true_sq = 0.0;
+  std::uint64_t em_n = 0, true_n = 0;
+  {
+    hw::PlantOptions plant_options = hw::SeedCalibratedPlant(hw::SeedTrackingCatheter(), o.seed);
+    hw::SimulatedCatheter plant(plant_options);
+    plant.ResetTo(0.0);
+    plant.Configure();
+    plant.Activate();
+    control::ServoLoop loop(plant, control::SeedServoConfig(plant_options, true));
+    loop.Start(0.0);
+    control::AdaptiveOptions ao;
+    ao.initial_width_mm = plant_options.config.TotalBendRad() * plant_options.config.GapMm();
+    ao.max_acceleration_mm_s2 = loop.config().limits.max_acceleration_mm_s2;
+    control::AdaptiveInverse compensator(ao);
+    control::FollowerConfig fc;
+    fc.standoff_mm = o.standoff_mm;
+    control::TargetFollower follower(fc);
+    hw::SimEmTracker em(eo, 0.0);
+    const std::size_t tip_index = plant.StateIndex(hw::iface::kTipPosition);
+    std::uint64_t seen = 0;
+    bool enabled = false;
+    const double period = 1e-3;
+    for (std::uint64_t k = 0;; ++k) {
+      const double t = static_cast<double>(k) * period;
+      if (t > o.duration_s) break;
+      std::this_thread::sleep_until(at(t));
+      if (now_s() > t + period) ++result.servo_overruns;
+      std::optional<double> pending_arrival;
+      {
+        std::lock_guard lock(mailbox.m);
+        if (mailbox.seq != seen) {
+          seen = mailbox.seq;
+          if (follower.Accept(mailbox.estimate, t)) {
+            if (!enabled) {
+              follower.Enable(t);
+              enabled = true;
+            }
+            pending_arrival = mailbox.arrived_s;
+          }
+        }
+      }
+      follower.Update(t, plant.state(tip_index));
+      const control::CycleRecord rec = loop.Cycle(t, k, follower, compensator);
+      ++result.servo_cycles;
+      if (pending_arrival) {
+        const double applied = now_s();
+        latency_ms.push_back(1e3 * (applied - *pending_arrival));
+        latency_csv.Row(Fmt("%.6f,%.6f", *pending_arrival, applied));
+      }
+      const double tip_true = plant.truth().tip_mm;
+      plant_tip_mm.store(tip_true);
+      const Eigen::Vector3d tip_img = tip_image(tip_true);
+      if (t >= o.metrics_start_s) {
+        true_sq += (tip_img - desired_tip(t)).squaredNorm();
+        ++true_n;
+      }
+      while (em.next_sample_s() <= t) {
+        const double t_sample = em.next_sample_s();
+        const hw::EmSampleRecord r = em.Sample(tip_img);
+        em_csv.Row(hw::EmLogRow(r));
+        if (r.valid && t_sample >= o.metrics_start_s) {
+          const double t_pipeline = r.t_em_s - eo.clock_offset_s;
+          em_sq += (em_to_image * r.position_mm - desired_tip(t_pipeline)).squaredNorm();
+          ++em_n;
+        }
+      }
+      if (k % 10 == 0) {
+        servo_csv.Row(Fmt("%.3f,%s,%.4f,%.4f,%.4f,%u", t, control::ToString(follower.mode()).c_str(), rec.reference_mm,
+                          rec.base_mm, rec.tip_mm, follower.faults()));
+        const Eigen::Vector3d tg = target_image(t);
+        truth_csv.Row(Fmt("%.3f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f", t, tg.x(), tg.y(), tg.z(), tip_img.x(), tip_img.y(),
+                          tip_img.z()));
+      }
+      if (k % 1000 == 0 && k > 0)
+        log(Fmt("t %.0f s: mode %s, volumes %llu, detected %llu", t, control::ToString(follower.mode()).c_str(),
+                static_cast<unsigned long long>(volumes.load()), static_cast<unsigned long long>(detected.load())));
+    }
+    result.limit_faults = loop.limiter().faults();
+    result.em_samples = em.samples();
+    result.em_dropouts = em.dropouts();
+    const auto& c = follower.counters();
+    result.estimates_accepted = c.accepted;
+    result.estimates_rejected = c.rejected_non_finite + c.rejected_range + c.rejected_time + c.rejected_confidence;
+  }
+  stop = true;
+  queue_cv.notify_all();
+  scanner_thread.join();
+  tracker_thread.join();
+
+  result.volumes = volumes;
+  result.detected = detected;
+  result.dropped_frames = dropped + (result.volumes - std::min(result.volumes, result.detected + dropped));
+  result.tip_to_target_rms_mm = em_n ? std::sqrt(em_sq / static_cast<double>(em_n)) : 0.0;
+  result.true_tip_to_target_rms_mm = true_n ? std::sqrt(true_sq / static_cast<double>(true_n)) : 0.0;
+  result.latency.count = latency_ms.size();
+  result.latency.p50_ms = Percentile(latency_ms, 0.5);
+  result.latency.p99_ms = Percentile(latency_ms, 0.99);
+  result.latency.max_ms = Percentile(latency_ms, 1.0);
+  if (!o.out_dir.empty()) {
+    std::ofstream run(o.out_dir / "run.json");
+    run << Fmt(
+        "{\"format\": \"echoservo-run\", \"version\": 1, \"heart_rate_hz\": %.6f, \"standoff_mm\": %.3f, "
+        "\"source\": \"echoservo demo\", \"seed\": %llu, \"duration_s\": %.3f}\n",
+        o.heart_rate_bpm / 60.0, o.standoff_mm, static_cast<unsigned long long>(o.seed), o.duration_s);
+  }
+  return result;
+}
+
+}  // namespace echoservo::live

@@ -1,0 +1,70 @@
+// The closed-loop demo: simulated scanner → tracker (detector + heartbeat EKF) → link →
+// 1 kHz catheter servo on the simulated catheter, whose tip moves the catheter in the
+// scanner's scene; a simulated EM tracker on the tip measures the result.
+//
+// Real time on the host's steady clock (the pipeline clock, s since the run's start):
+// volume k is acquired at k / rate_hz (the scene is rendered with the catheter where the
+// plant's tip is then and the annulus displaced by the target trajectory), delivered to the
+// tracker after the imaging delay (uniform in [delay_min_s, delay_max_s], in order), detected
+// (RadonDetector::Track), and its target's axis coordinate updates the EKF, whose predicted
+// motion is published; the servo (control/target_follower.h + control/servo_loop.h, adaptive
+// backlash compensation) evaluates the newest model every millisecond. Three threads:
+// scanner (rendering on one TBB thread), tracker, servo.
+//
+// Figures: tip-to-target error = the tip's distance from where it should be (the target less
+// the standoff along the catheter axis), from the EM tracker's samples mapped back with the
+// simulator's known EM→image transform and clock offset (`tip_to_target_rms_mm`, includes
+// the EM noise) and from the plant's true tip (`true_tip_to_target_rms_mm`), after
+// `metrics_start_s`; latency = volume arrival at the tracker → the first servo cycle that
+// applies its estimate. Units: mm, s, image frame.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+
+namespace echoservo::live {
+
+struct DemoOptions {
+  double duration_s = 20.0;      // (0, 3600]
+  double rate_hz = 25.0;         // volume rate, (0, 60]
+  double delay_min_s = 0.05;     // imaging delay range, [0, 1]
+  double delay_max_s = 0.10;
+  double heart_rate_bpm = 60.0;  // target: the mitral annulus trajectory, [30, 180]
+  double target_p2p_mm = 10.0;   // its peak-to-peak excursion, (0, 20]
+  double standoff_mm = 5.0;      // [0, 30]; the detector needs ≥ 4 mm of gap to see the target
+  double metrics_start_s = 3.0;
+  std::uint64_t seed = 1;
+  std::filesystem::path out_dir;  // the RUN directory (docs/report.md); empty: not written
+  std::function<void(const std::string&)> log;  // progress lines; may be null
+  // Throws std::invalid_argument naming the option.
+  void Validate() const;
+};
+
+struct LatencyStats {
+  double p50_ms = 0.0, p99_ms = 0.0, max_ms = 0.0;
+  std::uint64_t count = 0;
+};
+
+struct DemoResult {
+  double tip_to_target_rms_mm = 0.0;       // EM-measured
+  double true_tip_to_target_rms_mm = 0.0;  // plant truth
+  LatencyStats latency;                    // arrival → setpoint applied
+  std::uint64_t volumes = 0;               // acquired
+  std::uint64_t detected = 0;              // volumes with a catheter found
+  std::uint64_t dropped_frames = 0;        // not detected, or not delivered in time
+  std::uint64_t estimates_accepted = 0;    // by the servo
+  std::uint64_t estimates_rejected = 0;
+  std::uint64_t em_samples = 0, em_dropouts = 0;
+  std::uint64_t servo_cycles = 0, servo_overruns = 0;
+  std::uint64_t limit_faults = 0;
+  int ekf_harmonics = 0;
+  double ekf_rate_hz = 0.0;
+};
+
+// Runs the demo for options.duration_s of real time. Throws std::invalid_argument for bad
+// options, std::runtime_error when the RUN directory cannot be written.
+DemoResult RunDemo(const DemoOptions& options);
+
+}  // namespace echoservo::live
