@@ -34,6 +34,7 @@ void RunDemoCommand(const DemoArgs& a) {
         {"true_tip_to_target_rms_mm", r.true_tip_to_target_rms_mm},
         {"latency_ms", {{"p50", r.latency.p50_ms}, {"p99", r.latency.p99_ms}, {"max", r.latency.max_ms}, {"count", r.latency.count}}},
         {"dropped_frames", r.dropped_frames},
+        {"missed_acquisitions", r.missed_acquisitions},
         {"volumes", r.volumes},
         {"detected", r.detected},
         {"estimates_accepted", r.estimates_accepted},

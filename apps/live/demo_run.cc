@@ -163,7 +163,7 @@ DemoResult RunDemo(const DemoOptions& o) {
   std::condition_variable queue_cv;
   std::deque<Delivery> queue;
   Mailbox mailbox;
-  std::atomic<std::uint64_t> dropped{0}, detected{0}, volumes{0};
+  std::atomic<std::uint64_t> dropped{0}, detected{0}, volumes{0}, missed{0};
   const Clock::time_point start = Clock::now() + std::chrono::milliseconds(50);
   auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
   auto at = [&](double t_s) { return start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(t_s)); };
@@ -175,12 +175,18 @@ DemoResult RunDemo(const DemoOptions& o) {
     std::uniform_real_distribution<double> delay(o.delay_min_s, o.delay_max_s);
     double last_deliver = 0.0;
     for (std::int64_t k = 0; !stop; ++k) {
-      const double t_acq = static_cast<double>(k) / o.rate_hz;
+      double t_acq = static_cast<double>(k) / o.rate_hz;
+      // A scanner acquires on its own schedule: slots missed while rendering are lost.
+      if (now_s() > t_acq + 1.0 / o.rate_hz) {
+        const auto behind = static_cast<std::int64_t>(std::floor(now_s() * o.rate_hz)) - k;
+        missed += static_cast<std::uint64_t>(std::max<std::int64_t>(0, behind));
+        k += std::max<std::int64_t>(0, behind);
+        t_acq = static_cast<double>(k) / o.rate_hz;
+      }
       if (t_acq > o.duration_s) break;
       std::this_thread::sleep_until(at(t_acq));
       std::optional<imaging::SourceFrame> frame;
-      one.execute([&] { frame = scanner.Next(); });
-      if (!frame) break;
+      one.execute([&] { frame = scanner.Render(t_acq); });
       ++volumes;
       last_deliver = std::max(last_deliver, t_acq + delay(rng));
       {
@@ -206,6 +212,12 @@ DemoResult RunDemo(const DemoOptions& o) {
         if (queue.empty()) {
           if (stop) break;
           continue;
+        }
+        // Only the newest delivered volume matters: older ones still queued (the tracker fell
+        // behind) are dropped.
+        while (queue.size() > 1 && queue[1].deliver_s <= now_s()) {
+          queue.pop_front();
+          ++dropped;
         }
         next.emplace(std::move(queue.front()));
         queue.pop_front();
@@ -334,7 +346,8 @@ DemoResult RunDemo(const DemoOptions& o) {
 
   result.volumes = volumes;
   result.detected = detected;
-  result.dropped_frames = dropped + (result.volumes - std::min(result.volumes, result.detected + dropped));
+  result.dropped_frames = dropped + missed;
+  result.missed_acquisitions = missed;
   result.tip_to_target_rms_mm = em_n ? std::sqrt(em_sq / static_cast<double>(em_n)) : 0.0;
   result.true_tip_to_target_rms_mm = true_n ? std::sqrt(true_sq / static_cast<double>(true_n)) : 0.0;
   result.latency.count = latency_ms.size();

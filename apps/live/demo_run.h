@@ -53,7 +53,8 @@ struct DemoResult {
   LatencyStats latency;                    // arrival → setpoint applied
   std::uint64_t volumes = 0;               // acquired
   std::uint64_t detected = 0;              // volumes with a catheter found
-  std::uint64_t dropped_frames = 0;        // not detected, or not delivered in time
+  std::uint64_t dropped_frames = 0;        // not detected, skipped by a late tracker, or not acquired
+  std::uint64_t missed_acquisitions = 0;   // acquisition slots lost to a late renderer
   std::uint64_t estimates_accepted = 0;    // by the servo
   std::uint64_t estimates_rejected = 0;
   std::uint64_t em_samples = 0, em_dropouts = 0;
