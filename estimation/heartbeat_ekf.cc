@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <vector>
@@ -69,10 +70,14 @@ int HeartbeatEkf::ChooseHarmonics() const {
     } catch (const std::invalid_argument&) {
       break;  // too many harmonics for this window or sampling rate
     }
-    scores.push_back(ss);
+    // A count that loses the phase within the window is no candidate (its zero-order
+    // hold while re-initialising would score instead).
+    const bool held = filter.initialised() && filter.initialisations() == 1;
+    scores.push_back(held ? ss : std::numeric_limits<double>::infinity());
   }
   // The fewest harmonics within (0.01 mm)² a sample of the best (ties on clean data).
   const double best = *std::min_element(scores.begin(), scores.end());
+  if (!std::isfinite(best)) return o_.max_harmonics;  // none held: the most flexible shape
   const double slack = 1e-4 * static_cast<double>(buffer_.size());
   for (std::size_t i = 0; i < scores.size(); ++i) {
     if (scores[i] <= best + slack) return static_cast<int>(i) + 1;
@@ -98,7 +103,7 @@ void HeartbeatEkf::Initialise() {
       FitHarmonics(t.data(), z.data(), t.size(), t.back(), fo).motion.frequency_hz;
   const int count = o_.harmonics > 0 ? o_.harmonics : ChooseHarmonics();
   const HarmonicFit fit =
-      FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.back(), rate_hz, count, kInitTrendOrder);
+      FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.front(), rate_hz, count, kInitTrendOrder);
   harmonics_ = fit.harmonics;
   noise_mm_ = o_.noise_mm > 0.0 ? o_.noise_mm : std::max(fit.noise_mm, kNoiseFloorMm);
 
@@ -127,7 +132,11 @@ void HeartbeatEkf::Initialise() {
       std::pow(std::max(0.05, 2.0 * noise_mm_ / amp / std::sqrt(m)), 2);
   p_(PhaseIndex() + 1, PhaseIndex() + 1) = std::pow(kTwoPi * 0.05, 2);
 
-  t_ = t.back();
+  // Warm start: the batch fit holds one rate over the window, while the heart rate
+  // changes within it; filtering the window from its first sample on leaves the phase
+  // and rate of its end, where prediction starts.
+  t_ = t.front();
+  for (std::size_t i = 1; i < t.size(); ++i) Correct(t[i], z[i]);
   initialised_ = true;
   ++initialisations_;
   consecutive_rejections_ = 0;
@@ -216,19 +225,13 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
     return UpdateResult::kInitialised;
   }
 
-  TimeUpdate(t_s - t_);
-  t_ = t_s;
-  if (phase_sd_rad() > o_.max_phase_sd_rad) {  // coasted too long: phase unknown
+  const UpdateResult result = Correct(t_s, z);
+  if (result == UpdateResult::kLost) {  // coasted too long: phase unknown
     initialised_ = false;
     buffer_.assign(1, {t_s, z});
-    return UpdateResult::kLost;
+    return result;
   }
-  Vector h;
-  const double predicted = ShapeAt(x_(PhaseIndex()), &h);
-  const Vector ph = p_ * h;
-  const double s = h.dot(ph) + noise_mm_ * noise_mm_;
-  const double nu = z - predicted;
-  if (nu * nu > o_.gate_sigma * o_.gate_sigma * s) {
+  if (result == UpdateResult::kRejected) {
     ++rejected_;
     recent_.emplace_back(t_s, z);
     if (++consecutive_rejections_ >= o_.max_rejections) {
@@ -237,10 +240,24 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
       recent_.clear();
       return UpdateResult::kLost;
     }
-    return UpdateResult::kRejected;
+    return result;
   }
   consecutive_rejections_ = 0;
   recent_.clear();
+  ++accepted_;
+  return result;
+}
+
+UpdateResult HeartbeatEkf::Correct(double t_s, double z) {
+  TimeUpdate(t_s - t_);
+  t_ = t_s;
+  if (phase_sd_rad() > o_.max_phase_sd_rad) return UpdateResult::kLost;
+  Vector h;
+  const double predicted = ShapeAt(x_(PhaseIndex()), &h);
+  const Vector ph = p_ * h;
+  const double s = h.dot(ph) + noise_mm_ * noise_mm_;
+  const double nu = z - predicted;
+  if (nu * nu > o_.gate_sigma * o_.gate_sigma * s) return UpdateResult::kRejected;
   if (o_.noise_mm == 0.0) {
     // Innovation-based measurement noise: E[ν²] = HPHᵀ + R (exponential average).
     const double r = std::max(nu * nu - (s - noise_mm_ * noise_mm_), kNoiseFloorMm * kNoiseFloorMm);
@@ -250,7 +267,6 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
   x_ += k * nu;
   p_.noalias() -= k * ph.transpose();
   p_ = 0.5 * (p_ + p_.transpose()).eval();
-  ++accepted_;
   return UpdateResult::kAccepted;
 }
 

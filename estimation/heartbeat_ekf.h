@@ -92,6 +92,9 @@ class HeartbeatEkf final : public MotionPredictor {
  private:
   void Initialise();
   int ChooseHarmonics() const;
+  // Time and measurement update at t_s: kAccepted, kRejected (gated, state only
+  // propagated) or kLost (phase too uncertain); no bookkeeping of the life cycle.
+  UpdateResult Correct(double t_s, double z_mm);
   void TimeUpdate(double dt);
   // The measurement model at phase θ (offset and harmonics); fills ∂h/∂x when h is set.
   double ShapeAt(double theta, Vector* h) const;
