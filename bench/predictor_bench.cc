@@ -45,10 +45,14 @@ void Feed(benchmark::State& state, Make make) {
 void BM_EkfUpdate(benchmark::State& state) {
   echoservo::estimation::HeartbeatEkfOptions o;
   o.harmonics = static_cast<int>(state.range(0));
-  o.respiration = state.range(1) != 0;
+  // 0: respiration off, 1: on, 2: automatic (the default; its periodic trend check included).
+  constexpr echoservo::estimation::Respiration kModes[] = {
+      echoservo::estimation::Respiration::kOff, echoservo::estimation::Respiration::kOn,
+      echoservo::estimation::Respiration::kAuto};
+  o.respiration = kModes[state.range(1)];
   Feed(state, [&] { return HeartbeatEkf(o); });
 }
-BENCHMARK(BM_EkfUpdate)->Args({6, 0})->Args({6, 1})->Args({12, 1});
+BENCHMARK(BM_EkfUpdate)->Args({6, 0})->Args({6, 1})->Args({6, 2})->Args({12, 1});
 
 // (Re-)initialisation: the first 4 s (100 measurements) into a fresh filter, including
 // the batch rate search and, with automatic harmonics, the harmonic-count choice.
@@ -73,7 +77,7 @@ BENCHMARK(BM_ConstantVelocityKfUpdate);
 void BM_FourierMotionEvaluate(benchmark::State& state) {
   echoservo::estimation::HeartbeatEkfOptions o;
   o.harmonics = static_cast<int>(state.range(0));
-  o.respiration = true;
+  o.respiration = echoservo::estimation::Respiration::kOn;
   HeartbeatEkf ekf(o);
   const echoservo::estimation::MotionTrace& trace = Measurements();
   for (std::size_t i = 0; i < trace.size() && trace.t_s[i] < 6.0; ++i)

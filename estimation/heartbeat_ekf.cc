@@ -17,6 +17,7 @@ constexpr double kNoiseFloorMm = 0.02;
 constexpr double kNoiseAdaptation = 0.02;  // ~50 measurements (2 s at 25 vol/s)
 constexpr int kInitTrendOrder = 3;         // cubic: slow respiration within the window
 constexpr double kChoiceSplit = 0.6;       // harmonic choice: initialise on 60 %, score 40 %
+constexpr double kMinOffsetRateQ = 0.3;    // mm/s/√s: the offset-rate intensity's floor
 
 bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
 
@@ -28,7 +29,8 @@ HeartbeatEkf::HeartbeatEkf(HeartbeatEkfOptions options) : o_(options) {
       o_.max_harmonics <= kMaxHarmonics && Positive(o_.min_rate_hz) &&
       o_.max_rate_hz > o_.min_rate_hz && Positive(o_.init_window_s) && std::isfinite(o_.noise_mm) &&
       o_.noise_mm >= 0.0 && Positive(o_.coefficient_q_mm) && Positive(o_.offset_q_mm) &&
-      Positive(o_.offset_rate_q_mm_s) && Positive(o_.rate_q_rad_s) && Positive(o_.phase_q_rad) &&
+      std::isfinite(o_.offset_rate_q_mm_s) && o_.offset_rate_q_mm_s >= 0.0 &&
+      Positive(o_.rate_q_rad_s) && Positive(o_.phase_q_rad) &&
       Positive(o_.gate_sigma) && o_.max_rejections >= 1 && Positive(o_.max_phase_sd_rad) &&
       std::isfinite(o_.horizon_s) && o_.horizon_s >= 0.0;
   if (!ok) {
@@ -59,6 +61,8 @@ int HeartbeatEkf::ChooseHarmonics() const {
   for (int n = 1; n <= o_.max_harmonics; ++n) {
     HeartbeatEkfOptions sub = o_;
     sub.harmonics = n;
+    sub.respiration = respiration_ ? Respiration::kOn : Respiration::kOff;  // decided already
+    sub.offset_rate_q_mm_s = offset_rate_q_mm_s_;
     sub.init_window_s = split_s;
     HeartbeatEkf filter(sub);
     double ss = 0.0;
@@ -85,6 +89,67 @@ int HeartbeatEkf::ChooseHarmonics() const {
   return 1;
 }
 
+void HeartbeatEkf::ChooseRespiration(const HarmonicFit& cubic, const HarmonicFit& flat,
+                                     double window_s) {
+  // Is the window's slow trend real? BIC of the cubic trend against a constant offset
+  // under the same harmonics (3 parameters more).
+  const auto n = static_cast<double>(cubic.samples);
+  const bool trend = n * std::log(std::pow(flat.residual_rms_mm / cubic.residual_rms_mm, 2)) >
+                     kInitTrendOrder * std::log(n);
+  respiration_ = o_.respiration == Respiration::kOn ||
+                 (o_.respiration == Respiration::kAuto && trend);
+  // The offset rate follows white acceleration of intensity q = 2ā²τ (the equivalent
+  // white noise of an acceleration of RMS ā and correlation time τ), with τ = T/(2π)
+  // for the slowest oscillation a window of T seconds shows.
+  offset_rate_q_mm_s_ =
+      o_.offset_rate_q_mm_s > 0.0
+          ? o_.offset_rate_q_mm_s
+          : std::max(cubic.trend_accel_rms_mm_s2 * std::sqrt(window_s / std::numbers::pi),
+                     kMinOffsetRateQ);
+}
+
+void HeartbeatEkf::CheckRespiration() {
+  // The same test as at initialisation on the newest window, at the filter's own phase
+  // track (which follows the heart-rate changes a fixed-rate fit would blur).
+  std::vector<double> t;
+  std::vector<double> theta;
+  std::vector<double> z;
+  for (const WindowSample& w : window_) {
+    t.push_back(w.t_s);
+    theta.push_back(w.phase_rad);
+    z.push_back(w.z_mm);
+  }
+  window_.clear();
+  if (t.size() < static_cast<std::size_t>(2 * (kInitTrendOrder + 1 + 2 * harmonics_))) return;
+  const HarmonicFit cubic = FitHarmonicsAtPhases(t.data(), theta.data(), z.data(), t.size(),
+                                                 t.back(), harmonics_, kInitTrendOrder);
+  const HarmonicFit flat =
+      FitHarmonicsAtPhases(t.data(), theta.data(), z.data(), t.size(), t.back(), harmonics_, 0);
+  ChooseRespiration(cubic, flat, t.back() - t.front());
+  // Breathing persists: two windows in a row (repeated tests on white noise would
+  // pass one now and then).
+  const bool first = !trend_seen_;
+  trend_seen_ = respiration_;
+  if (!respiration_ || first) {
+    respiration_ = false;
+    return;
+  }
+  // Insert the offset rate after the offset: the trend's slope now, (1 mm/s)² prior.
+  const int n = StateSize();  // with the new state
+  Vector x(n);
+  x(0) = x_(0);
+  x(1) = cubic.motion.drift_mm_s;
+  x.tail(n - 2) = x_.tail(n - 2);
+  Matrix p = Matrix::Zero(n, n);
+  p(0, 0) = p_(0, 0);
+  p.block(0, 2, 1, n - 2) = p_.block(0, 1, 1, n - 2);
+  p.block(2, 0, n - 2, 1) = p_.block(1, 0, n - 2, 1);
+  p.bottomRightCorner(n - 2, n - 2) = p_.bottomRightCorner(n - 2, n - 2);
+  p(1, 1) = 1.0;
+  x_ = x;
+  p_ = p;
+}
+
 void HeartbeatEkf::Initialise() {
   std::vector<double> t;
   std::vector<double> z;
@@ -99,8 +164,12 @@ void HeartbeatEkf::Initialise() {
   fo.max_rate_hz = o_.max_rate_hz;
   fo.max_harmonics = o_.max_harmonics;
   fo.trend_order = kInitTrendOrder;
-  const double rate_hz =
-      FitHarmonics(t.data(), z.data(), t.size(), t.back(), fo).motion.frequency_hz;
+  const HarmonicFit search = FitHarmonics(t.data(), z.data(), t.size(), t.back(), fo);
+  const double rate_hz = search.motion.frequency_hz;
+  ChooseRespiration(search,
+                    FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.back(), rate_hz,
+                                       search.harmonics, 0),
+                    t.back() - t.front());
   const int count = o_.harmonics > 0 ? o_.harmonics : ChooseHarmonics();
   const HarmonicFit fit =
       FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.front(), rate_hz, count, kInitTrendOrder);
@@ -112,7 +181,7 @@ void HeartbeatEkf::Initialise() {
   x_.setZero(n);
   p_.setZero(n, n);
   x_(0) = fit.motion.offset_mm;
-  if (o_.respiration) x_(1) = fit.motion.drift_mm_s;
+  if (respiration_) x_(1) = fit.motion.drift_mm_s;
   x_(c0) = fit.motion.cos_mm[0];
   for (int k = 2; k <= harmonics_; ++k) {
     x_(c0 + 2 * k - 3) = fit.motion.cos_mm[static_cast<std::size_t>(k - 1)];
@@ -126,7 +195,7 @@ void HeartbeatEkf::Initialise() {
   const double m = static_cast<double>(t.size());
   const double coef_var = 8.0 * noise_mm_ * noise_mm_ / m + 0.01;
   for (int i = 0; i < PhaseIndex(); ++i) p_(i, i) = coef_var;
-  if (o_.respiration) p_(1, 1) = 1.0;  // (1 mm/s)²
+  if (respiration_) p_(1, 1) = 1.0;  // (1 mm/s)²
   const double amp = std::max(std::abs(x_(c0)), 0.1);
   p_(PhaseIndex(), PhaseIndex()) =
       std::pow(std::max(0.05, 2.0 * noise_mm_ / amp / std::sqrt(m)), 2);
@@ -142,6 +211,8 @@ void HeartbeatEkf::Initialise() {
   consecutive_rejections_ = 0;
   buffer_.clear();
   recent_.clear();
+  window_.clear();
+  trend_seen_ = false;
 }
 
 void HeartbeatEkf::TimeUpdate(double dt) {
@@ -151,19 +222,19 @@ void HeartbeatEkf::TimeUpdate(double dt) {
   const int om = th + 1;
   // x ← F x
   x_(th) += x_(om) * dt;
-  if (o_.respiration) x_(0) += x_(1) * dt;
+  if (respiration_) x_(0) += x_(1) * dt;
   // P ← F P Fᵀ: F = I + dt·(e_θ e_ωᵀ [+ e_c e_ċᵀ]); rows then columns.
   p_.row(th) += dt * p_.row(om);
-  if (o_.respiration) p_.row(0) += dt * p_.row(1);
+  if (respiration_) p_.row(0) += dt * p_.row(1);
   p_.col(th) += dt * p_.col(om);
-  if (o_.respiration) p_.col(0) += dt * p_.col(1);
+  if (respiration_) p_.col(0) += dt * p_.col(1);
   // + Q
   const double qc = o_.coefficient_q_mm * o_.coefficient_q_mm * dt;
   for (int i = FirstCoefficient(); i < th; ++i) p_(i, i) += qc;
   const double qo = o_.offset_q_mm * o_.offset_q_mm;
   p_(0, 0) += qo * dt;
-  if (o_.respiration) {
-    const double qr = o_.offset_rate_q_mm_s * o_.offset_rate_q_mm_s;
+  if (respiration_) {
+    const double qr = offset_rate_q_mm_s_ * offset_rate_q_mm_s_;
     p_(0, 0) += qr * dt * dt * dt / 3.0;
     p_(0, 1) += qr * dt * dt / 2.0;
     p_(1, 0) += qr * dt * dt / 2.0;
@@ -245,6 +316,10 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
   consecutive_rejections_ = 0;
   recent_.clear();
   ++accepted_;
+  if (o_.respiration == Respiration::kAuto && !respiration_) {
+    window_.push_back({t_s, x_(PhaseIndex()), z});
+    if (t_s - window_.front().t_s >= o_.init_window_s) CheckRespiration();
+  }
   return result;
 }
 
@@ -274,7 +349,7 @@ double HeartbeatEkf::Predict(double t_s) const {
   if (!initialised_) return last_mm_;
   const double dt = t_s - t_;
   const double z = ShapeAt(x_(PhaseIndex()) + x_(PhaseIndex() + 1) * dt, nullptr);
-  return o_.respiration ? z + x_(1) * dt : z;
+  return respiration_ ? z + x_(1) * dt : z;
 }
 
 FourierMotion HeartbeatEkf::Motion() const {
@@ -291,7 +366,7 @@ FourierMotion HeartbeatEkf::Motion() const {
   m.phase0_rad = x_(th);
   m.frequency_hz = std::max(x_(th + 1) / kTwoPi, 1e-6);
   m.offset_mm = x_(0);
-  m.drift_mm_s = o_.respiration ? x_(1) : 0.0;
+  m.drift_mm_s = respiration_ ? x_(1) : 0.0;
   m.cos_mm.push_back(x_(c0));
   m.sin_mm.push_back(0.0);
   for (int k = 2; k <= harmonics_; ++k) {
