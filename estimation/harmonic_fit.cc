@@ -19,7 +19,6 @@ struct Window {
   const double* x;
   std::size_t n;
   double t_ref;
-  const double* phase = nullptr;  // the phase of each sample; null: 2π·rate·(t − t_ref)
   double Scale() const { return std::max(t[n - 1] - t[0], 1e-9); }
 };
 
@@ -37,7 +36,7 @@ Eigen::MatrixXd Design(const Window& w, double rate_hz, int harmonics, int trend
       a(r, j) = u;
       u *= tau / scale;
     }
-    const double ph = w.phase != nullptr ? w.phase[i] : kTwoPi * rate_hz * tau;
+    const double ph = kTwoPi * rate_hz * tau;
     const double c1 = std::cos(ph);
     const double s1 = std::sin(ph);
     double c = c1;
@@ -84,11 +83,11 @@ double MedianStep(const Window& w) {
   return dt[dt.size() / 2];
 }
 
-HarmonicFit FitAt(const Window& w, double rate_hz, int harmonics, int trend) {
-  const double* t_s = w.t;
-  const double* x_mm = w.x;
-  const std::size_t n = w.n;
-  const double t_ref_s = w.t_ref;
+}  // namespace
+
+HarmonicFit FitHarmonicsAtRate(const double* t_s, const double* x_mm, std::size_t n, double t_ref_s,
+                               double rate_hz, int harmonics, int trend) {
+  const Window w{t_s, x_mm, n, t_ref_s};
   const int p = BaseColumns(trend) + 2 * harmonics;
   if (harmonics < 1 || n < static_cast<std::size_t>(p + 1)) {
     throw std::invalid_argument("harmonic fit: " + std::to_string(n) + " samples cannot fit " +
@@ -110,20 +109,6 @@ HarmonicFit FitAt(const Window& w, double rate_hz, int harmonics, int trend) {
   m.offset_mm = beta(0);
   m.drift_mm_s = trend > 0 ? beta(1) / w.Scale() : 0.0;
   const int base = BaseColumns(trend);
-  // The trend Σ βⱼ uʲ, u = τ/T: its second derivative Σ j(j−1) βⱼ uʲ⁻² / T².
-  double accel_ss = 0.0;
-  for (std::size_t i = 0; i < n && trend >= 2; ++i) {
-    const double u = (t_s[i] - t_ref_s) / w.Scale();
-    double accel = 0.0;
-    double power = 1.0;
-    for (int j = 2; j < base; ++j) {
-      accel += j * (j - 1) * beta(j) * power;
-      power *= u;
-    }
-    accel_ss += accel * accel;
-  }
-  fit.trend_accel_rms_mm_s2 =
-      std::sqrt(accel_ss / static_cast<double>(n)) / (w.Scale() * w.Scale());
   // Rotate so that the fundamental is a pure cosine of the phase θ = ωτ − ψ.
   const double psi = std::atan2(beta(base + 1), beta(base));
   m.phase0_rad = -psi;
@@ -136,18 +121,6 @@ HarmonicFit FitAt(const Window& w, double rate_hz, int harmonics, int trend) {
     m.sin_mm.push_back(k == 1 ? 0.0 : -ak * s + bk * c);
   }
   return fit;
-}
-
-}  // namespace
-
-HarmonicFit FitHarmonicsAtRate(const double* t_s, const double* x_mm, std::size_t n, double t_ref_s,
-                               double rate_hz, int harmonics, int trend_order) {
-  return FitAt({t_s, x_mm, n, t_ref_s}, rate_hz, harmonics, trend_order);
-}
-
-HarmonicFit FitHarmonicsAtPhases(const double* t_s, const double* phase_rad, const double* x_mm,
-                                 std::size_t n, double t_ref_s, int harmonics, int trend_order) {
-  return FitAt({t_s, x_mm, n, t_ref_s, phase_rad}, 0.0, harmonics, trend_order);
 }
 
 HarmonicFit FitHarmonics(const double* t_s, const double* x_mm, std::size_t n, double t_ref_s,

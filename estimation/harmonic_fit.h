@@ -41,9 +41,6 @@ struct HarmonicFit {
   int harmonics = 0;
   double residual_rms_mm = 0.0;
   double noise_mm = 0.0;  // residual RMS corrected for the fitted parameters
-  // RMS over the window's samples of the fitted polynomial trend's second derivative
-  // (mm/s²; 0 for trend order < 2): how fast the slow (respiratory) offset bends.
-  double trend_accel_rms_mm_s2 = 0.0;
   std::size_t samples = 0;
 };
 
@@ -55,11 +52,5 @@ HarmonicFit FitHarmonics(const double* t_s, const double* x_mm, std::size_t n, d
 // Least-squares coefficients at a fixed rate (no search); same normalisation.
 HarmonicFit FitHarmonicsAtRate(const double* t_s, const double* x_mm, std::size_t n, double t_ref_s,
                                double rate_hz, int harmonics, int trend_order);
-
-// The same at given phases of each sample (rad, e.g. a filter's phase track, which
-// follows heart-rate variability) instead of a fixed rate: motion.frequency_hz is 0 and
-// phase0_rad the rotation that makes the fundamental a pure cosine of phase + phase0.
-HarmonicFit FitHarmonicsAtPhases(const double* t_s, const double* phase_rad, const double* x_mm,
-                                 std::size_t n, double t_ref_s, int harmonics, int trend_order);
 
 }  // namespace echoservo::estimation

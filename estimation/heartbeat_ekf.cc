@@ -18,6 +18,7 @@ constexpr double kNoiseAdaptation = 0.02;  // ~50 measurements (2 s at 25 vol/s)
 constexpr int kInitTrendOrder = 3;         // cubic: slow respiration within the window
 constexpr double kChoiceSplit = 0.6;       // harmonic choice: initialise on 60 %, score 40 %
 constexpr double kMinOffsetRateQ = 0.3;    // mm/s/√s: the offset-rate intensity's floor
+constexpr double kInitialOffsetRateVar = 1.0;  // (mm/s)²: the offset rate's prior
 
 bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
 
@@ -89,43 +90,23 @@ int HeartbeatEkf::ChooseHarmonics() const {
   return 1;
 }
 
-void HeartbeatEkf::ChooseRespiration(const HarmonicFit& cubic, const HarmonicFit& flat,
-                                     double window_s) {
-  // Is the window's slow trend real? BIC of the cubic trend against a constant offset
-  // under the same harmonics (3 parameters more).
-  const auto n = static_cast<double>(cubic.samples);
-  const bool trend = n * std::log(std::pow(flat.residual_rms_mm / cubic.residual_rms_mm, 2)) >
-                     kInitTrendOrder * std::log(n);
+void HeartbeatEkf::ChooseRespiration(const TrendEvidence& evidence) {
   respiration_ = o_.respiration == Respiration::kOn ||
-                 (o_.respiration == Respiration::kAuto && trend);
+                 (o_.respiration == Respiration::kAuto && evidence.Significant());
   // The offset rate follows white acceleration of intensity q = 2ā²τ (the equivalent
   // white noise of an acceleration of RMS ā and correlation time τ), with τ = T/(2π)
   // for the slowest oscillation a window of T seconds shows.
   offset_rate_q_mm_s_ =
       o_.offset_rate_q_mm_s > 0.0
           ? o_.offset_rate_q_mm_s
-          : std::max(cubic.trend_accel_rms_mm_s2 * std::sqrt(window_s / std::numbers::pi),
+          : std::max(evidence.accel_rms_mm_s2 * std::sqrt(evidence.window_s / std::numbers::pi),
                      kMinOffsetRateQ);
 }
 
 void HeartbeatEkf::CheckRespiration() {
-  // The same test as at initialisation on the newest window, at the filter's own phase
-  // track (which follows the heart-rate changes a fixed-rate fit would blur).
-  std::vector<double> t;
-  std::vector<double> theta;
-  std::vector<double> z;
-  for (const WindowSample& w : window_) {
-    t.push_back(w.t_s);
-    theta.push_back(w.phase_rad);
-    z.push_back(w.z_mm);
-  }
-  window_.clear();
-  if (t.size() < static_cast<std::size_t>(2 * (kInitTrendOrder + 1 + 2 * harmonics_))) return;
-  const HarmonicFit cubic = FitHarmonicsAtPhases(t.data(), theta.data(), z.data(), t.size(),
-                                                 t.back(), harmonics_, kInitTrendOrder);
-  const HarmonicFit flat =
-      FitHarmonicsAtPhases(t.data(), theta.data(), z.data(), t.size(), t.back(), harmonics_, 0);
-  ChooseRespiration(cubic, flat, t.back() - t.front());
+  const TrendEvidence evidence = trend_.Evidence();
+  trend_.Reset(harmonics_, o_.init_window_s);
+  ChooseRespiration(evidence);
   // Breathing persists: two windows in a row (repeated tests on white noise would
   // pass one now and then).
   const bool first = !trend_seen_;
@@ -138,14 +119,14 @@ void HeartbeatEkf::CheckRespiration() {
   const int n = StateSize();  // with the new state
   Vector x(n);
   x(0) = x_(0);
-  x(1) = cubic.motion.drift_mm_s;
+  x(1) = evidence.drift_mm_s;
   x.tail(n - 2) = x_.tail(n - 2);
   Matrix p = Matrix::Zero(n, n);
   p(0, 0) = p_(0, 0);
   p.block(0, 2, 1, n - 2) = p_.block(0, 1, 1, n - 2);
   p.block(2, 0, n - 2, 1) = p_.block(1, 0, n - 2, 1);
   p.bottomRightCorner(n - 2, n - 2) = p_.bottomRightCorner(n - 2, n - 2);
-  p(1, 1) = 1.0;
+  p(1, 1) = kInitialOffsetRateVar;
   x_ = x;
   p_ = p;
 }
@@ -166,10 +147,12 @@ void HeartbeatEkf::Initialise() {
   fo.trend_order = kInitTrendOrder;
   const HarmonicFit search = FitHarmonics(t.data(), z.data(), t.size(), t.back(), fo);
   const double rate_hz = search.motion.frequency_hz;
-  ChooseRespiration(search,
-                    FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.back(), rate_hz,
-                                       search.harmonics, 0),
-                    t.back() - t.front());
+  // The slow-trend test at the searched rate and harmonic count.
+  SlowTrendWindow window;
+  window.Reset(search.harmonics, o_.init_window_s);
+  for (std::size_t i = 0; i < t.size(); ++i)
+    window.Add(t[i], kTwoPi * rate_hz * (t[i] - t.back()), z[i]);
+  ChooseRespiration(window.Evidence());
   const int count = o_.harmonics > 0 ? o_.harmonics : ChooseHarmonics();
   const HarmonicFit fit =
       FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.front(), rate_hz, count, kInitTrendOrder);
@@ -195,7 +178,7 @@ void HeartbeatEkf::Initialise() {
   const double m = static_cast<double>(t.size());
   const double coef_var = 8.0 * noise_mm_ * noise_mm_ / m + 0.01;
   for (int i = 0; i < PhaseIndex(); ++i) p_(i, i) = coef_var;
-  if (respiration_) p_(1, 1) = 1.0;  // (1 mm/s)²
+  if (respiration_) p_(1, 1) = kInitialOffsetRateVar;
   const double amp = std::max(std::abs(x_(c0)), 0.1);
   p_(PhaseIndex(), PhaseIndex()) =
       std::pow(std::max(0.05, 2.0 * noise_mm_ / amp / std::sqrt(m)), 2);
@@ -211,7 +194,7 @@ void HeartbeatEkf::Initialise() {
   consecutive_rejections_ = 0;
   buffer_.clear();
   recent_.clear();
-  window_.clear();
+  trend_.Reset(harmonics_, o_.init_window_s);
   trend_seen_ = false;
 }
 
@@ -317,8 +300,8 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
   recent_.clear();
   ++accepted_;
   if (o_.respiration == Respiration::kAuto && !respiration_) {
-    window_.push_back({t_s, x_(PhaseIndex()), z});
-    if (t_s - window_.front().t_s >= o_.init_window_s) CheckRespiration();
+    trend_.Add(t_s, x_(PhaseIndex()), z);
+    if (trend_.span_s() >= o_.init_window_s) CheckRespiration();
   }
   return result;
 }

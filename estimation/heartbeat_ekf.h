@@ -40,11 +40,10 @@
 #include <cstddef>
 #include <deque>
 #include <utility>
-#include <vector>
 
 #include "estimation/fourier_motion.h"
-#include "estimation/harmonic_fit.h"
 #include "estimation/motion_predictor.h"
+#include "estimation/slow_trend.h"
 
 namespace echoservo::estimation {
 
@@ -111,11 +110,11 @@ class HeartbeatEkf final : public MotionPredictor {
  private:
   void Initialise();
   int ChooseHarmonics() const;
-  // Sets respiration_ and its intensity from a fit with a cubic trend and the same fit
-  // with a constant offset, over a window of window_s seconds.
-  void ChooseRespiration(const HarmonicFit& cubic, const HarmonicFit& flat, double window_s);
+  // Sets respiration_ and its intensity from a window's slow-trend evidence.
+  void ChooseRespiration(const TrendEvidence& evidence);
   // While respiration is automatic and off: the test on the newest window of accepted
-  // measurements; adds the offset-rate state when it passes.
+  // measurements (at the filter's phase track); adds the offset-rate state when it
+  // passes twice in a row.
   void CheckRespiration();
   // Time and measurement update at t_s: kAccepted, kRejected (gated, state only
   // propagated) or kLost (phase too uncertain); no bookkeeping of the life cycle.
@@ -142,13 +141,8 @@ class HeartbeatEkf final : public MotionPredictor {
   std::size_t initialisations_ = 0;
   std::deque<std::pair<double, double>> buffer_;  // (t, z) while (re)initialising
   std::deque<std::pair<double, double>> recent_;  // rejected run, for re-initialisation
-  struct WindowSample {
-    double t_s;
-    double phase_rad;  // the filter's phase after the update
-    double z_mm;
-  };
-  std::deque<WindowSample> window_;  // accepted since the last respiration check
-  bool trend_seen_ = false;          // the last check found a slow trend
+  SlowTrendWindow trend_;     // accepted measurements since the last respiration check
+  bool trend_seen_ = false;   // the last check found a slow trend
   Vector x_;
   Matrix p_;
 };
