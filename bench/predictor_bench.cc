@@ -4,9 +4,12 @@
 // ${CMAKE_RUNTIME_OUTPUT_DIRECTORY}/echoservo_predictor_bench.
 #include <benchmark/benchmark.h>
 
+#include <numbers>
+
 #include "control/synthetic_motion.h"
 #include "estimation/heartbeat_ekf.h"
 #include "estimation/motion_trace.h"
+#include "estimation/slow_trend.h"
 
 namespace {
 
@@ -45,10 +48,14 @@ void Feed(benchmark::State& state, Make make) {
 void BM_EkfUpdate(benchmark::State& state) {
   echoservo::estimation::HeartbeatEkfOptions o;
   o.harmonics = static_cast<int>(state.range(0));
-  o.respiration = state.range(1) != 0;
+  // 0: respiration off, 1: on, 2: automatic (the default; its periodic trend check included).
+  constexpr echoservo::estimation::Respiration kModes[] = {
+      echoservo::estimation::Respiration::kOff, echoservo::estimation::Respiration::kOn,
+      echoservo::estimation::Respiration::kAuto};
+  o.respiration = kModes[state.range(1)];
   Feed(state, [&] { return HeartbeatEkf(o); });
 }
-BENCHMARK(BM_EkfUpdate)->Args({6, 0})->Args({6, 1})->Args({12, 1});
+BENCHMARK(BM_EkfUpdate)->Args({6, 0})->Args({6, 1})->Args({6, 2})->Args({12, 1});
 
 // (Re-)initialisation: the first 4 s (100 measurements) into a fresh filter, including
 // the batch rate search and, with automatic harmonics, the harmonic-count choice.
@@ -64,6 +71,19 @@ void BM_EkfInitialisation(benchmark::State& state) {
 }
 BENCHMARK(BM_EkfInitialisation)->Arg(0)->Arg(6)->Unit(benchmark::kMillisecond);
 
+// The automatic respiration check, once per 4 s window while the term is off: the
+// slow-trend evidence of 100 measurements (4 s at 25 vol/s) at N harmonics; the update
+// that runs it costs this much more.
+void BM_SlowTrendEvidence(benchmark::State& state) {
+  const echoservo::estimation::MotionTrace& trace = Measurements();
+  echoservo::estimation::SlowTrendWindow window;
+  window.Reset(static_cast<int>(state.range(0)), 4.0);
+  for (std::size_t i = 0; i < 100; ++i)
+    window.Add(trace.t_s[i], 2.0 * std::numbers::pi * 1.2 * trace.t_s[i], trace.position_mm[i]);
+  for (auto _ : state) benchmark::DoNotOptimize(window.Evidence());
+}
+BENCHMARK(BM_SlowTrendEvidence)->Arg(6)->Arg(12);
+
 void BM_ConstantVelocityKfUpdate(benchmark::State& state) {
   Feed(state, [] { return echoservo::estimation::ConstantVelocityKf(); });
 }
@@ -73,7 +93,7 @@ BENCHMARK(BM_ConstantVelocityKfUpdate);
 void BM_FourierMotionEvaluate(benchmark::State& state) {
   echoservo::estimation::HeartbeatEkfOptions o;
   o.harmonics = static_cast<int>(state.range(0));
-  o.respiration = true;
+  o.respiration = echoservo::estimation::Respiration::kOn;
   HeartbeatEkf ekf(o);
   const echoservo::estimation::MotionTrace& trace = Measurements();
   for (std::size_t i = 0; i < trace.size() && trace.t_s[i] < 6.0; ++i)

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <vector>
@@ -16,6 +17,8 @@ constexpr double kNoiseFloorMm = 0.02;
 constexpr double kNoiseAdaptation = 0.02;  // ~50 measurements (2 s at 25 vol/s)
 constexpr int kInitTrendOrder = 3;         // cubic: slow respiration within the window
 constexpr double kChoiceSplit = 0.6;       // harmonic choice: initialise on 60 %, score 40 %
+constexpr double kMinOffsetRateQ = 0.3;    // mm/s/√s: the offset-rate intensity's floor
+constexpr double kInitialOffsetRateVar = 1.0;  // (mm/s)²: the offset rate's prior
 
 bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
 
@@ -27,7 +30,8 @@ HeartbeatEkf::HeartbeatEkf(HeartbeatEkfOptions options) : o_(options) {
       o_.max_harmonics <= kMaxHarmonics && Positive(o_.min_rate_hz) &&
       o_.max_rate_hz > o_.min_rate_hz && Positive(o_.init_window_s) && std::isfinite(o_.noise_mm) &&
       o_.noise_mm >= 0.0 && Positive(o_.coefficient_q_mm) && Positive(o_.offset_q_mm) &&
-      Positive(o_.offset_rate_q_mm_s) && Positive(o_.rate_q_rad_s) && Positive(o_.phase_q_rad) &&
+      std::isfinite(o_.offset_rate_q_mm_s) && o_.offset_rate_q_mm_s >= 0.0 &&
+      Positive(o_.rate_q_rad_s) && Positive(o_.phase_q_rad) &&
       Positive(o_.gate_sigma) && o_.max_rejections >= 1 && Positive(o_.max_phase_sd_rad) &&
       std::isfinite(o_.horizon_s) && o_.horizon_s >= 0.0;
   if (!ok) {
@@ -58,6 +62,8 @@ int HeartbeatEkf::ChooseHarmonics() const {
   for (int n = 1; n <= o_.max_harmonics; ++n) {
     HeartbeatEkfOptions sub = o_;
     sub.harmonics = n;
+    sub.respiration = respiration_ ? Respiration::kOn : Respiration::kOff;  // decided already
+    sub.offset_rate_q_mm_s = offset_rate_q_mm_s_;
     sub.init_window_s = split_s;
     HeartbeatEkf filter(sub);
     double ss = 0.0;
@@ -69,15 +75,60 @@ int HeartbeatEkf::ChooseHarmonics() const {
     } catch (const std::invalid_argument&) {
       break;  // too many harmonics for this window or sampling rate
     }
-    scores.push_back(ss);
+    // A count that loses the phase within the window is no candidate (its zero-order
+    // hold while re-initialising would score instead).
+    const bool held = filter.initialised() && filter.initialisations() == 1;
+    scores.push_back(held ? ss : std::numeric_limits<double>::infinity());
   }
   // The fewest harmonics within (0.01 mm)² a sample of the best (ties on clean data).
   const double best = *std::min_element(scores.begin(), scores.end());
+  if (!std::isfinite(best)) return o_.max_harmonics;  // none held: the most flexible shape
   const double slack = 1e-4 * static_cast<double>(buffer_.size());
   for (std::size_t i = 0; i < scores.size(); ++i) {
     if (scores[i] <= best + slack) return static_cast<int>(i) + 1;
   }
   return 1;
+}
+
+void HeartbeatEkf::ChooseRespiration(const TrendEvidence& evidence) {
+  respiration_ = o_.respiration == Respiration::kOn ||
+                 (o_.respiration == Respiration::kAuto && evidence.Significant());
+  // The offset rate follows white acceleration of intensity q = 2ā²τ (the equivalent
+  // white noise of an acceleration of RMS ā and correlation time τ), with τ = T/(2π)
+  // for the slowest oscillation a window of T seconds shows.
+  offset_rate_q_mm_s_ =
+      o_.offset_rate_q_mm_s > 0.0
+          ? o_.offset_rate_q_mm_s
+          : std::max(evidence.accel_rms_mm_s2 * std::sqrt(evidence.window_s / std::numbers::pi),
+                     kMinOffsetRateQ);
+}
+
+void HeartbeatEkf::CheckRespiration() {
+  const TrendEvidence evidence = trend_.Evidence();
+  trend_.Reset(harmonics_, o_.init_window_s);
+  ChooseRespiration(evidence);
+  // Breathing persists: two windows in a row (repeated tests on white noise would
+  // pass one now and then).
+  const bool first = !trend_seen_;
+  trend_seen_ = respiration_;
+  if (!respiration_ || first) {
+    respiration_ = false;
+    return;
+  }
+  // Insert the offset rate after the offset: the trend's slope now, (1 mm/s)² prior.
+  const int n = StateSize();  // with the new state
+  Vector x(n);
+  x(0) = x_(0);
+  x(1) = evidence.drift_mm_s;
+  x.tail(n - 2) = x_.tail(n - 2);
+  Matrix p = Matrix::Zero(n, n);
+  p(0, 0) = p_(0, 0);
+  p.block(0, 2, 1, n - 2) = p_.block(0, 1, 1, n - 2);
+  p.block(2, 0, n - 2, 1) = p_.block(1, 0, n - 2, 1);
+  p.bottomRightCorner(n - 2, n - 2) = p_.bottomRightCorner(n - 2, n - 2);
+  p(1, 1) = kInitialOffsetRateVar;
+  x_ = x;
+  p_ = p;
 }
 
 void HeartbeatEkf::Initialise() {
@@ -94,11 +145,17 @@ void HeartbeatEkf::Initialise() {
   fo.max_rate_hz = o_.max_rate_hz;
   fo.max_harmonics = o_.max_harmonics;
   fo.trend_order = kInitTrendOrder;
-  const double rate_hz =
-      FitHarmonics(t.data(), z.data(), t.size(), t.back(), fo).motion.frequency_hz;
+  const HarmonicFit search = FitHarmonics(t.data(), z.data(), t.size(), t.back(), fo);
+  const double rate_hz = search.motion.frequency_hz;
+  // The slow-trend test at the searched rate and harmonic count.
+  SlowTrendWindow window;
+  window.Reset(search.harmonics, o_.init_window_s);
+  for (std::size_t i = 0; i < t.size(); ++i)
+    window.Add(t[i], kTwoPi * rate_hz * (t[i] - t.back()), z[i]);
+  ChooseRespiration(window.Evidence());
   const int count = o_.harmonics > 0 ? o_.harmonics : ChooseHarmonics();
   const HarmonicFit fit =
-      FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.back(), rate_hz, count, kInitTrendOrder);
+      FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.front(), rate_hz, count, kInitTrendOrder);
   harmonics_ = fit.harmonics;
   noise_mm_ = o_.noise_mm > 0.0 ? o_.noise_mm : std::max(fit.noise_mm, kNoiseFloorMm);
 
@@ -107,7 +164,7 @@ void HeartbeatEkf::Initialise() {
   x_.setZero(n);
   p_.setZero(n, n);
   x_(0) = fit.motion.offset_mm;
-  if (o_.respiration) x_(1) = fit.motion.drift_mm_s;
+  if (respiration_) x_(1) = fit.motion.drift_mm_s;
   x_(c0) = fit.motion.cos_mm[0];
   for (int k = 2; k <= harmonics_; ++k) {
     x_(c0 + 2 * k - 3) = fit.motion.cos_mm[static_cast<std::size_t>(k - 1)];
@@ -121,18 +178,24 @@ void HeartbeatEkf::Initialise() {
   const double m = static_cast<double>(t.size());
   const double coef_var = 8.0 * noise_mm_ * noise_mm_ / m + 0.01;
   for (int i = 0; i < PhaseIndex(); ++i) p_(i, i) = coef_var;
-  if (o_.respiration) p_(1, 1) = 1.0;  // (1 mm/s)²
+  if (respiration_) p_(1, 1) = kInitialOffsetRateVar;
   const double amp = std::max(std::abs(x_(c0)), 0.1);
   p_(PhaseIndex(), PhaseIndex()) =
       std::pow(std::max(0.05, 2.0 * noise_mm_ / amp / std::sqrt(m)), 2);
   p_(PhaseIndex() + 1, PhaseIndex() + 1) = std::pow(kTwoPi * 0.05, 2);
 
-  t_ = t.back();
+  // Warm start: the batch fit holds one rate over the window, while the heart rate
+  // changes within it; filtering the window from its first sample on leaves the phase
+  // and rate of its end, where prediction starts.
+  t_ = t.front();
+  for (std::size_t i = 1; i < t.size(); ++i) Correct(t[i], z[i]);
   initialised_ = true;
   ++initialisations_;
   consecutive_rejections_ = 0;
   buffer_.clear();
   recent_.clear();
+  trend_.Reset(harmonics_, o_.init_window_s);
+  trend_seen_ = false;
 }
 
 void HeartbeatEkf::TimeUpdate(double dt) {
@@ -142,19 +205,19 @@ void HeartbeatEkf::TimeUpdate(double dt) {
   const int om = th + 1;
   // x ← F x
   x_(th) += x_(om) * dt;
-  if (o_.respiration) x_(0) += x_(1) * dt;
+  if (respiration_) x_(0) += x_(1) * dt;
   // P ← F P Fᵀ: F = I + dt·(e_θ e_ωᵀ [+ e_c e_ċᵀ]); rows then columns.
   p_.row(th) += dt * p_.row(om);
-  if (o_.respiration) p_.row(0) += dt * p_.row(1);
+  if (respiration_) p_.row(0) += dt * p_.row(1);
   p_.col(th) += dt * p_.col(om);
-  if (o_.respiration) p_.col(0) += dt * p_.col(1);
+  if (respiration_) p_.col(0) += dt * p_.col(1);
   // + Q
   const double qc = o_.coefficient_q_mm * o_.coefficient_q_mm * dt;
   for (int i = FirstCoefficient(); i < th; ++i) p_(i, i) += qc;
   const double qo = o_.offset_q_mm * o_.offset_q_mm;
   p_(0, 0) += qo * dt;
-  if (o_.respiration) {
-    const double qr = o_.offset_rate_q_mm_s * o_.offset_rate_q_mm_s;
+  if (respiration_) {
+    const double qr = offset_rate_q_mm_s_ * offset_rate_q_mm_s_;
     p_(0, 0) += qr * dt * dt * dt / 3.0;
     p_(0, 1) += qr * dt * dt / 2.0;
     p_(1, 0) += qr * dt * dt / 2.0;
@@ -216,19 +279,13 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
     return UpdateResult::kInitialised;
   }
 
-  TimeUpdate(t_s - t_);
-  t_ = t_s;
-  if (phase_sd_rad() > o_.max_phase_sd_rad) {  // coasted too long: phase unknown
+  const UpdateResult result = Correct(t_s, z);
+  if (result == UpdateResult::kLost) {  // coasted too long: phase unknown
     initialised_ = false;
     buffer_.assign(1, {t_s, z});
-    return UpdateResult::kLost;
+    return result;
   }
-  Vector h;
-  const double predicted = ShapeAt(x_(PhaseIndex()), &h);
-  const Vector ph = p_ * h;
-  const double s = h.dot(ph) + noise_mm_ * noise_mm_;
-  const double nu = z - predicted;
-  if (nu * nu > o_.gate_sigma * o_.gate_sigma * s) {
+  if (result == UpdateResult::kRejected) {
     ++rejected_;
     recent_.emplace_back(t_s, z);
     if (++consecutive_rejections_ >= o_.max_rejections) {
@@ -237,10 +294,28 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
       recent_.clear();
       return UpdateResult::kLost;
     }
-    return UpdateResult::kRejected;
+    return result;
   }
   consecutive_rejections_ = 0;
   recent_.clear();
+  ++accepted_;
+  if (o_.respiration == Respiration::kAuto && !respiration_) {
+    trend_.Add(t_s, x_(PhaseIndex()), z);
+    if (trend_.span_s() >= o_.init_window_s) CheckRespiration();
+  }
+  return result;
+}
+
+UpdateResult HeartbeatEkf::Correct(double t_s, double z) {
+  TimeUpdate(t_s - t_);
+  t_ = t_s;
+  if (phase_sd_rad() > o_.max_phase_sd_rad) return UpdateResult::kLost;
+  Vector h;
+  const double predicted = ShapeAt(x_(PhaseIndex()), &h);
+  const Vector ph = p_ * h;
+  const double s = h.dot(ph) + noise_mm_ * noise_mm_;
+  const double nu = z - predicted;
+  if (nu * nu > o_.gate_sigma * o_.gate_sigma * s) return UpdateResult::kRejected;
   if (o_.noise_mm == 0.0) {
     // Innovation-based measurement noise: E[ν²] = HPHᵀ + R (exponential average).
     const double r = std::max(nu * nu - (s - noise_mm_ * noise_mm_), kNoiseFloorMm * kNoiseFloorMm);
@@ -250,7 +325,6 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
   x_ += k * nu;
   p_.noalias() -= k * ph.transpose();
   p_ = 0.5 * (p_ + p_.transpose()).eval();
-  ++accepted_;
   return UpdateResult::kAccepted;
 }
 
@@ -258,7 +332,7 @@ double HeartbeatEkf::Predict(double t_s) const {
   if (!initialised_) return last_mm_;
   const double dt = t_s - t_;
   const double z = ShapeAt(x_(PhaseIndex()) + x_(PhaseIndex() + 1) * dt, nullptr);
-  return o_.respiration ? z + x_(1) * dt : z;
+  return respiration_ ? z + x_(1) * dt : z;
 }
 
 FourierMotion HeartbeatEkf::Motion() const {
@@ -275,7 +349,7 @@ FourierMotion HeartbeatEkf::Motion() const {
   m.phase0_rad = x_(th);
   m.frequency_hz = std::max(x_(th + 1) / kTwoPi, 1e-6);
   m.offset_mm = x_(0);
-  m.drift_mm_s = o_.respiration ? x_(1) : 0.0;
+  m.drift_mm_s = respiration_ ? x_(1) : 0.0;
   m.cos_mm.push_back(x_(c0));
   m.sin_mm.push_back(0.0);
   for (int k = 2; k <= harmonics_; ++k) {

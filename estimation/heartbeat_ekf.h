@@ -2,8 +2,8 @@
 // filter on a Fourier model of the cardiac cycle that predicts the target through the
 // imaging delay and exports the predicted motion for the 1 kHz servo.
 //
-// State: offset c (mm), [offset rate ċ (mm/s) when `respiration` is on: the slow
-// low-order respiration term], the fundamental's cosine coefficient a₁ (its sine
+// State: offset c (mm), [offset rate ċ (mm/s) when the respiration term is carried: the
+// slow low-order respiration term], the fundamental's cosine coefficient a₁ (its sine
 // coefficient is fixed at 0 so that phase and shape are identifiable), aₖ, bₖ for
 // k = 2..N (mm), the cardiac phase θ (rad) and the heart rate ω (rad/s).
 // Process: θ += ω·dt, c += ċ·dt; random walks on the coefficients, offset, ċ and ω
@@ -14,15 +14,23 @@
 //
 // Life cycle: measurements are buffered until `init_window_s` of data is held, then a
 // batch fit (estimation/harmonic_fit.h, with a cubic trend for slow respiration) gives
-// the rate, the coefficients and the measurement noise. Missing frames:
-// the next update simply propagates across the gap (coasting). Outliers: a measurement
-// whose innovation exceeds `gate_sigma` innovation standard deviations is rejected.
-// Lost: after `max_rejections` consecutive rejections, or when the phase standard
-// deviation exceeds `max_phase_sd_rad` (a long gap), the filter re-initialises from new
-// data (keeping the measurements since the first rejection). Automatic harmonic count:
-// filters with 1..max_harmonics harmonics, initialised on the first 60 % of the window,
-// predict the remaining 40 % one measurement ahead; the count with the smallest squared
-// prediction error is used (the fewest within (0.01 mm)² a sample of it, for clean data).
+// the rate, the coefficients and the measurement noise, referred to the window's first
+// sample; the filter then runs over the window (warm start), so that prediction starts
+// from the phase and rate at its end although the heart rate changed within it.
+// Automatic harmonic count: filters with 1..max_harmonics harmonics, each initialised
+// (and warm-started) on the first 60 % of the window, predict the remaining 40 % one
+// measurement ahead; the count with the smallest squared prediction error is used (the
+// fewest within (0.01 mm)² a sample of it, for clean data; a count that loses the phase
+// is no candidate). Automatic respiration: the offset-rate state is carried when the
+// window's cubic trend is significant (BIC against a constant offset), with an
+// intensity from the trend's curvature; while it is off, the same test runs on every
+// further window of accepted measurements at the filter's phase track, and two windows
+// in a row switch it on. Missing frames: the next update simply propagates across the
+// gap (coasting). Outliers: a measurement whose innovation exceeds `gate_sigma`
+// innovation standard deviations is rejected. Lost: after `max_rejections` consecutive
+// rejections, or when the phase standard deviation exceeds `max_phase_sd_rad` (a long
+// gap), the filter re-initialises from new data (keeping the measurements since the
+// first rejection), choosing harmonics and respiration anew.
 // Measurement noise: seeded by the fit, then the innovation average
 // R ← 0.98·R + 0.02·max(ν² − HPHᵀ, (0.02 mm)²) over accepted measurements, unless set. While
 // (re)initialising it predicts the newest measurement (zero-order hold).
@@ -35,13 +43,18 @@
 
 #include "estimation/fourier_motion.h"
 #include "estimation/motion_predictor.h"
+#include "estimation/slow_trend.h"
 
 namespace echoservo::estimation {
 
+// The offset-rate (respiration) state: automatic (decided at each (re)initialisation
+// from the window's slow trend, and switched on later when the trend appears), or forced.
+enum class Respiration { kAuto, kOff, kOn };
+
 struct HeartbeatEkfOptions {
-  int harmonics = 0;  // 0: automatic at initialisation (BIC), up to max_harmonics; ≤ 12
+  int harmonics = 0;  // 0: automatic (cross-validated at initialisation) up to max_harmonics; ≤ 12
   int max_harmonics = 8;
-  bool respiration = false;  // the offset-rate (low-order respiration) state
+  Respiration respiration = Respiration::kAuto;
   double min_rate_hz = 0.6;
   double max_rate_hz = 3.0;
   double init_window_s = 4.0;
@@ -49,7 +62,9 @@ struct HeartbeatEkfOptions {
   // Random-walk intensities (standard deviation growth per √s).
   double coefficient_q_mm = 0.02;
   double offset_q_mm = 0.1;
-  double offset_rate_q_mm_s = 10.0;  // with respiration
+  // With respiration; 0: from the window's cubic trend, ā·√(T/π) for an RMS trend
+  // acceleration ā (mm/s²) over T seconds (floored at 0.3 mm/s/√s).
+  double offset_rate_q_mm_s = 0.0;
   double rate_q_rad_s = 0.6;         // heart-rate variability
   double phase_q_rad = 0.02;
   double gate_sigma = 4.0;
@@ -83,6 +98,9 @@ class HeartbeatEkf final : public MotionPredictor {
   int harmonics() const { return harmonics_; }
   double rate_hz() const;
   double noise_mm() const { return noise_mm_; }
+  // Whether the current initialisation carries the offset-rate state, and its intensity.
+  bool respiration() const { return respiration_; }
+  double offset_rate_q_mm_s() const { return respiration_ ? offset_rate_q_mm_s_ : 0.0; }
   double phase_sd_rad() const;
   const HeartbeatEkfOptions& options() const { return o_; }
   std::size_t accepted() const { return accepted_; }
@@ -92,16 +110,27 @@ class HeartbeatEkf final : public MotionPredictor {
  private:
   void Initialise();
   int ChooseHarmonics() const;
+  // Sets respiration_ and its intensity from a window's slow-trend evidence.
+  void ChooseRespiration(const TrendEvidence& evidence);
+  // While respiration is automatic and off: the test on the newest window of accepted
+  // measurements (at the filter's phase track); adds the offset-rate state when it
+  // passes twice in a row.
+  void CheckRespiration();
+  // Time and measurement update at t_s: kAccepted, kRejected (gated, state only
+  // propagated) or kLost (phase too uncertain); no bookkeeping of the life cycle.
+  UpdateResult Correct(double t_s, double z_mm);
   void TimeUpdate(double dt);
   // The measurement model at phase θ (offset and harmonics); fills ∂h/∂x when h is set.
   double ShapeAt(double theta, Vector* h) const;
   int StateSize() const;
-  int FirstCoefficient() const { return o_.respiration ? 2 : 1; }
+  int FirstCoefficient() const { return respiration_ ? 2 : 1; }
   int PhaseIndex() const { return StateSize() - 2; }
 
   HeartbeatEkfOptions o_;
   bool initialised_ = false;
   int harmonics_ = 0;
+  bool respiration_ = false;
+  double offset_rate_q_mm_s_ = 0.0;
   double noise_mm_ = 0.0;
   double t_ = 0.0;
   double last_mm_ = 0.0;
@@ -112,6 +141,8 @@ class HeartbeatEkf final : public MotionPredictor {
   std::size_t initialisations_ = 0;
   std::deque<std::pair<double, double>> buffer_;  // (t, z) while (re)initialising
   std::deque<std::pair<double, double>> recent_;  // rejected run, for re-initialisation
+  SlowTrendWindow trend_;     // accepted measurements since the last respiration check
+  bool trend_seen_ = false;   // the last check found a slow trend
   Vector x_;
   Matrix p_;
 };

@@ -127,6 +127,8 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
   for (std::size_t b = 0; b < baselines.size(); ++b)
     run.baselines.push_back(base_acc[b].Score(baselines[b]->name()));
   run.harmonics = ekf.harmonics();
+  run.respiration = ekf.respiration();
+  run.offset_rate_q_mm_s = ekf.offset_rate_q_mm_s();
   run.rate_hz = ekf.rate_hz();
   run.noise_mm = ekf.noise_mm();
   run.accepted = ekf.accepted();

@@ -44,6 +44,8 @@ struct PredictionRun {
       baselines;  // zero_order_hold, linear_extrapolation, constant_velocity_kf
   // The EKF at the end of the trace.
   int harmonics = 0;
+  bool respiration = false;         // the offset-rate state carried
+  double offset_rate_q_mm_s = 0.0;  // its intensity (0 without)
   double rate_hz = 0.0;
   double noise_mm = 0.0;
   std::size_t accepted = 0;

@@ -19,7 +19,8 @@ struct PredictFlags {
   double latency_s = 0.1;
   double rate_hz = 0.0;
   std::string harmonics = "auto";
-  bool respiration = false;
+  bool respiration = false;     // force the respiration state on
+  bool no_respiration = false;  // force it off (default: automatic)
   double noise_mm = 0.0;
   double init_window_s = 4.0;
   double min_hz = 0.6;
@@ -43,6 +44,10 @@ int ParseHarmonics(const std::string& text) {
   return n;
 }
 
+std::string RespirationMode(const PredictFlags& f) {
+  return f.respiration ? "on" : f.no_respiration ? "off" : "auto";
+}
+
 nlohmann::json ScoreJson(const estimation::PredictionScore& s) {
   return {{"rms_mm", s.rms_mm}, {"mae_mm", s.mae_mm}, {"max_mm", s.max_mm}};
 }
@@ -58,7 +63,9 @@ void RunPredict(const PredictFlags& f) {
   o.latency_s = f.latency_s;
   o.measurement_rate_hz = f.rate_hz;
   o.ekf.harmonics = ParseHarmonics(f.harmonics);
-  o.ekf.respiration = f.respiration;
+  o.ekf.respiration = f.respiration      ? estimation::Respiration::kOn
+                      : f.no_respiration ? estimation::Respiration::kOff
+                                         : estimation::Respiration::kAuto;
   o.ekf.noise_mm = f.noise_mm;
   o.ekf.init_window_s = f.init_window_s;
   o.ekf.min_rate_hz = f.min_hz;
@@ -86,7 +93,9 @@ void RunPredict(const PredictFlags& f) {
                           {"harmonics", r.harmonics},
                           {"heart_rate_bpm", 60.0 * r.rate_hz},
                           {"noise_mm", r.noise_mm},
-                          {"respiration", f.respiration},
+                          {"respiration", r.respiration},
+                          {"respiration_mode", RespirationMode(f)},
+                          {"offset_rate_q_mm_s", r.offset_rate_q_mm_s},
                           {"accepted", r.accepted},
                           {"rejected", r.rejected},
                           {"initialisations", r.initialisations}}},
@@ -112,7 +121,9 @@ void RunPredict(const PredictFlags& f) {
   std::cout << "\nEKF: " << r.harmonics << " harmonics, heart rate " << Fixed(60.0 * r.rate_hz, 1)
             << " bpm at the end, measurement noise " << Fixed(r.noise_mm, 3) << " mm, "
             << r.accepted << " accepted, " << r.rejected << " rejected, " << r.initialisations
-            << " initialisation(s)" << (f.respiration ? ", respiration term on" : "") << "\n";
+            << " initialisation(s), respiration term "
+            << (r.respiration ? "on (" + Fixed(r.offset_rate_q_mm_s, 2) + " mm/s/√s)" : "off") << " ["
+            << RespirationMode(f) << "]\n";
 }
 
 }  // namespace
@@ -136,7 +147,11 @@ void AddPredictCommand(CLI::App& app) {
       "the full trace stays the reference (default: every sample)");
   cmd->add_option("--harmonics", f->harmonics,
                   "Harmonic count, 1-12, or auto (BIC at initialisation)");
-  cmd->add_flag("--respiration", f->respiration, "Add the slow respiration (offset-rate) state");
+  auto* on = cmd->add_flag("--respiration", f->respiration,
+                           "Always carry the slow respiration (offset-rate) state (default: "
+                           "automatic, when the data show a slow trend)");
+  cmd->add_flag("--no-respiration", f->no_respiration, "Never carry the respiration state")
+      ->excludes(on);
   cmd->add_option("--noise", f->noise_mm,
                   "Measurement noise sigma, mm (default: from the initial fit)");
   cmd->add_option("--init-window", f->init_window_s,

@@ -54,6 +54,25 @@ TEST(PredictCli, SyntheticTraceAtTheVolumeRateMeetsTheIssueFigure) {
                            "constant_velocity_kf", "6 harmonics", "respiration term on"}) {
     ExpectContains(text.out, part);
   }
+  EXPECT_FALSE(j["ekf"]["respiration"].get<bool>());  // automatic, and nothing breathes here
+  EXPECT_EQ(j["ekf"]["respiration_mode"], "auto");
+}
+
+TEST(PredictCli, BreathingSwitchesTheRespirationTermOnByDefault) {
+  TempDir dir("predict_cli", true);
+  const std::string trace = dir.str() + "/breathing.csv";
+  ASSERT_EQ(RunCli("sim motion --respiration 2.5 --duration 20 --out " + trace).rc, 0);
+  const RunResult r = RunCli("predict " + trace + " --rate 25 --latency 0.1 --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["ekf"]["respiration"].get<bool>());
+  EXPECT_GT(j["ekf"]["offset_rate_q_mm_s"].get<double>(), 0.0);
+  const RunResult off = RunCli("predict " + trace + " --rate 25 --no-respiration --json");
+  ASSERT_EQ(off.rc, 0) << off.err;
+  EXPECT_FALSE(nlohmann::json::parse(off.out)["ekf"]["respiration"].get<bool>());
+  const RunResult both = RunCli("predict " + trace + " --respiration --no-respiration");
+  EXPECT_NE(both.rc, 0);
+  ExpectContains(both.err, "excludes");
 }
 
 TEST(PredictCli, BadTracesFailWithWhereAndWhy) {

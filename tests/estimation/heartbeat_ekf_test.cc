@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 
 #include "control/trajectory.h"
@@ -46,6 +48,74 @@ TEST(HeartbeatEkf, MeetsTheIssueFigureOnTheMitralTraceWithHeartRateVariability) 
   // The baselines are worse than the zero-order hold here (noise × 1/dt amplification).
   for (const PredictionScore& b : clean.baselines)
     EXPECT_GT(b.rms_mm, 5.0 * clean.ekf.rms_mm) << b.name;
+}
+
+// The figure on every realisation of the heart-rate variability, not on one: seeds 1–10
+// (docs/predictor.md reports seeds 11–20, never used in development, as a held-out check).
+TEST(HeartbeatEkf, MeetsTheIssueFigureOnEverySeed) {
+  // The reference is the noisy trace, whose noise is in every error: 0.5 mm in all leaves
+  // √(0.5² − σ²) for the prediction error itself, against the noise-free truth.
+  const double noise_mm = control::MitralHrvDefaults().noise_mm;
+  const double own_mm = std::sqrt(0.5 * 0.5 - noise_mm * noise_mm);
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    const control::SyntheticMotion m = MitralHrvTrace(0.0, seed);
+    const PredictionRun noisy = RunPrediction(m.measured, At25Hz());
+    EXPECT_LE(noisy.ekf.rms_mm, 0.5) << "seed " << seed;
+    EXPECT_LE(5.0 * noisy.ekf.rms_mm, noisy.baselines.front().rms_mm) << "seed " << seed;
+    EXPECT_FALSE(noisy.respiration) << "seed " << seed << ": this trace does not breathe";
+    const MotionTrace truth = TruthOf(m);
+    PredictionRunOptions o = At25Hz();
+    o.truth = &truth;
+    EXPECT_LE(RunPrediction(m.measured, o).ekf.rms_mm, own_mm) << "seed " << seed;
+  }
+}
+
+// Seed 5's heart rate swings 68 → 78 → 71 bpm within the 4 s initialisation window: a
+// fixed-rate fit blurs the higher harmonics there, the warm-started filters do not.
+TEST(HeartbeatEkf, KeepsTheMitralHarmonicsWhenTheRateChangesDuringInitialisation) {
+  const control::SyntheticMotion m = MitralHrvTrace(0.0, 5);
+  const auto [slowest, fastest] =
+      std::minmax_element(m.heart_rate_bpm.begin(), m.heart_rate_bpm.begin() + 1001);  // 4 s
+  ASSERT_GT(*fastest - *slowest, 5.0);
+  const PredictionRun r = RunPrediction(m.measured, At25Hz());
+  // As many as a clean, steady mitral shape needs (ChoosesFewHarmonics… below).
+  EXPECT_GE(r.harmonics, 5);
+}
+
+TEST(HeartbeatEkf, CarriesTheRespirationTermWhenTheTraceBreathes) {
+  const control::SyntheticMotion m = MitralHrvTrace(2.5);  // 2.5 mm at 0.25 Hz
+  const PredictionRun automatic = RunPrediction(m.measured, At25Hz());
+  EXPECT_TRUE(automatic.respiration);
+  EXPECT_EQ(automatic.initialisations, 1u);
+  PredictionRunOptions o = At25Hz();
+  o.ekf.respiration = Respiration::kOn;
+  const PredictionRun on = RunPrediction(m.measured, o);
+  EXPECT_DOUBLE_EQ(automatic.ekf.rms_mm, on.ekf.rms_mm);  // the same filter
+  // Without the offset rate the offset's random walk lags breathing of up to 3.9 mm/s.
+  o.ekf.respiration = Respiration::kOff;
+  const PredictionRun off = RunPrediction(m.measured, o);
+  EXPECT_LT(2.0 * automatic.ekf.rms_mm, off.ekf.rms_mm);
+}
+
+TEST(HeartbeatEkf, SwitchesTheRespirationTermOnWhenBreathingStartsLater) {
+  const control::SyntheticMotion m = MitralHrvTrace();
+  MotionTrace measured = ResampleTrace(m.measured, 25.0);
+  const double start_s = 12.0;  // e.g. the ventilator starts: 2.5 mm at 0.25 Hz
+  for (std::size_t i = 0; i < measured.size(); ++i) {
+    const double t = measured.t_s[i] - start_s;
+    if (t > 0.0) measured.position_mm[i] += 2.5 * std::sin(2.0 * std::numbers::pi * 0.25 * t);
+  }
+  HeartbeatEkf ekf;
+  double switched_s = -1.0;
+  for (std::size_t i = 0; i < measured.size(); ++i) {
+    ekf.Update(measured.t_s[i], measured.position_mm[i]);
+    if (switched_s < 0.0 && ekf.respiration()) switched_s = measured.t_s[i];
+  }
+  EXPECT_EQ(ekf.initialisations(), 1u);
+  // Two 4 s windows with the trend, after at most one that straddles the start.
+  EXPECT_GT(switched_s, start_s);
+  EXPECT_LE(switched_s, start_s + 3.0 * ekf.options().init_window_s);
+  EXPECT_GT(ekf.offset_rate_q_mm_s(), 0.0);
 }
 
 TEST(HeartbeatEkf, IsThreeTimesBetterThanZeroOrderHoldOnThePhantom) {
