@@ -12,6 +12,13 @@
 namespace echoservo::estimation {
 namespace {
 
+// The fewest measurements a (re)initialisation fits: twice the parameters of the largest
+// model it may fit (2 per harmonic, the offset and a cubic trend).
+std::size_t MinInitSamples(const HeartbeatEkfOptions& o) {
+  const int h = o.harmonics > 0 ? o.harmonics : o.max_harmonics;
+  return static_cast<std::size_t>(2 * (2 * h + 4));
+}
+
 constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kNoiseFloorMm = 0.02;
 constexpr double kNoiseAdaptation = 0.02;  // ~50 measurements (2 s at 25 vol/s)
@@ -273,7 +280,12 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
   last_mm_ = z;
   if (!initialised_) {
     buffer_.emplace_back(t_s, z);
-    if (buffer_.back().first - buffer_.front().first < o_.init_window_s)
+    // Sparse data (many frames lost) may span the window with too few samples to fit (and
+    // alias the heartbeat): wait for enough; older samples go once enough newer ones still
+    // span the window (a sparse start does not stay in the fit).
+    while (buffer_.size() > MinInitSamples(o_) && buffer_.back().first - buffer_[1].first >= o_.init_window_s)
+      buffer_.pop_front();
+    if (buffer_.back().first - buffer_.front().first < o_.init_window_s || buffer_.size() < MinInitSamples(o_))
       return UpdateResult::kBuffering;
     Initialise();
     return UpdateResult::kInitialised;

@@ -35,6 +35,7 @@ void RunDemoCommand(const DemoArgs& a) {
         {"latency_ms", {{"p50", r.latency.p50_ms}, {"p99", r.latency.p99_ms}, {"max", r.latency.max_ms}, {"count", r.latency.count}}},
         {"dropped_frames", r.dropped_frames},
         {"missed_acquisitions", r.missed_acquisitions},
+        {"tracker_errors", r.tracker_errors},
         {"volumes", r.volumes},
         {"detected", r.detected},
         {"estimates_accepted", r.estimates_accepted},
@@ -44,6 +45,7 @@ void RunDemoCommand(const DemoArgs& a) {
         {"servo_cycles", r.servo_cycles},
         {"servo_overruns", r.servo_overruns},
         {"limit_faults", r.limit_faults},
+        {"resumes", r.resumes},
         {"ekf_harmonics", r.ekf_harmonics},
         {"ekf_rate_hz", r.ekf_rate_hz},
         {"run_dir", a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}};

@@ -35,9 +35,10 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// The scanner's catheter advance at the plant's tip position 0: the tip then rests 5.5 mm
-// short of the annulus's near face, so the servo follows it with a few mm of travel.
-constexpr double kAdvanceAtZeroMm = 8.0;
+// The scanner's catheter advance at the plant's tip position 0: the tip then rests
+// 10.5 mm short of the annulus's near face (5.5–15.5 mm as it moves ±5 mm), and following
+// it at a 5 mm standoff keeps the plant's tip within 0–11 mm of travel.
+constexpr double kAdvanceAtZeroMm = 3.0;
 
 double Percentile(std::vector<double> v, double p) {
   if (v.empty()) return 0.0;
@@ -163,7 +164,7 @@ DemoResult RunDemo(const DemoOptions& o) {
   std::condition_variable queue_cv;
   std::deque<Delivery> queue;
   Mailbox mailbox;
-  std::atomic<std::uint64_t> dropped{0}, detected{0}, volumes{0}, missed{0};
+  std::atomic<std::uint64_t> dropped{0}, detected{0}, volumes{0}, missed{0}, tracker_errors{0};
   const Clock::time_point start = Clock::now() + std::chrono::milliseconds(50);
   auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
   auto at = [&](double t_s) { return start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(t_s)); };
@@ -201,7 +202,8 @@ DemoResult RunDemo(const DemoOptions& o) {
   std::thread tracker_thread([&] {
     tracking::RadonDetector detector;
     estimation::HeartbeatEkfOptions ekf_options;
-    ekf_options.init_window_s = 2.0;
+    ekf_options.init_window_s = 3.0;
+    ekf_options.max_harmonics = 4;
     estimation::HeartbeatEkf ekf(ekf_options);
     std::optional<tracking::Line3> reference;  // the axis coordinates' reference line
     while (true) {
@@ -225,7 +227,14 @@ DemoResult RunDemo(const DemoOptions& o) {
       const Delivery& d = *next;
       std::this_thread::sleep_until(at(d.deliver_s));
       const double arrived = now_s();
-      const tracking::CatheterDetection det = detector.Track(d.volume);
+      tracking::CatheterDetection det;
+      try {
+        det = detector.Track(d.volume);
+      } catch (const std::exception& e) {
+        ++tracker_errors;
+        log(std::string("tracker: ") + e.what());
+        continue;
+      }
       const bool ok = det.found && det.target_found;
       if (!ok) {
         ++dropped;
@@ -236,7 +245,13 @@ DemoResult RunDemo(const DemoOptions& o) {
       if (!reference) reference = det.axis;
       const double s_target = (det.target_mm - reference->point).dot(reference->direction);
       const double s_tip = (det.tip_mm - reference->point).dot(reference->direction);
-      ekf.Process(d.acquired_s, s_target);
+      try {
+        ekf.Process(d.acquired_s, s_target);
+      } catch (const std::exception& e) {  // a bad measurement never stops the tracker
+        ++tracker_errors;
+        log(std::string("tracker: ") + e.what());
+        continue;
+      }
       const double published = now_s();
       if (ekf.initialised()) {
         std::lock_guard lock(mailbox.m);
@@ -288,7 +303,10 @@ DemoResult RunDemo(const DemoOptions& o) {
         if (mailbox.seq != seen) {
           seen = mailbox.seq;
           if (follower.Accept(mailbox.estimate, t)) {
-            if (!enabled) {
+            // The operator's enable: once tracking delivers, and again after a retraction
+            // (the demo resumes by itself; a clinical system would wait for the operator).
+            if (!enabled || follower.mode() == control::FollowerMode::kRetracting) {
+              if (enabled) ++result.resumes;
               follower.Enable(t);
               enabled = true;
             }
@@ -348,6 +366,7 @@ DemoResult RunDemo(const DemoOptions& o) {
   result.detected = detected;
   result.dropped_frames = dropped + missed;
   result.missed_acquisitions = missed;
+  result.tracker_errors = tracker_errors;
   result.tip_to_target_rms_mm = em_n ? std::sqrt(em_sq / static_cast<double>(em_n)) : 0.0;
   result.true_tip_to_target_rms_mm = true_n ? std::sqrt(true_sq / static_cast<double>(true_n)) : 0.0;
   result.latency.count = latency_ms.size();

@@ -55,11 +55,13 @@ struct DemoResult {
   std::uint64_t detected = 0;              // volumes with a catheter found
   std::uint64_t dropped_frames = 0;        // not detected, skipped by a late tracker, or not acquired
   std::uint64_t missed_acquisitions = 0;   // acquisition slots lost to a late renderer
+  std::uint64_t tracker_errors = 0;        // volumes the tracker could not process (logged)
   std::uint64_t estimates_accepted = 0;    // by the servo
   std::uint64_t estimates_rejected = 0;
   std::uint64_t em_samples = 0, em_dropouts = 0;
   std::uint64_t servo_cycles = 0, servo_overruns = 0;
   std::uint64_t limit_faults = 0;
+  std::uint64_t resumes = 0;               // following resumed after a watchdog retraction
   int ekf_harmonics = 0;
   double ekf_rate_hz = 0.0;
 };

@@ -220,6 +220,25 @@ TEST(HeartbeatEkf, CoastsThroughMissingFramesAndReinitialisesAfterALongGap) {
   EXPECT_LT(long_gap.ekf.rms_mm, 0.5 * long_gap.baselines.front().rms_mm);
 }
 
+// Sparse measurements (most frames lost) span the initial window with too few samples to
+// fit a heartbeat: the filter keeps buffering (holding the newest) instead of failing, and
+// initialises once enough have come.
+TEST(HeartbeatEkf, WaitsForEnoughSamplesWhenFramesAreSparse) {
+  HeartbeatEkf ekf;
+  double t = 0.0;
+  for (int i = 0; i < 12; ++i, t += 0.7) {
+    EXPECT_EQ(ekf.Process(t, 40.0 + 5.0 * std::cos(2 * std::numbers::pi * 1.1 * t)), UpdateResult::kBuffering) << t;
+    EXPECT_DOUBLE_EQ(ekf.Predict(t + 0.1), 40.0 + 5.0 * std::cos(2 * std::numbers::pi * 1.1 * t));
+  }
+  EXPECT_FALSE(ekf.initialised());
+  UpdateResult last = UpdateResult::kBuffering;
+  for (int i = 0; i < 200 && !ekf.initialised(); ++i, t += 0.04)
+    last = ekf.Process(t, 40.0 + 5.0 * std::cos(2 * std::numbers::pi * 1.1 * t));
+  EXPECT_TRUE(ekf.initialised());
+  EXPECT_EQ(last, UpdateResult::kInitialised);
+  EXPECT_NEAR(ekf.rate_hz(), 1.1, 0.02);
+}
+
 TEST(HeartbeatEkf, ReinitialisesWhenTheTargetJumps) {
   const control::SyntheticMotion m = MitralHrvTrace();
   MotionTrace measured = ResampleTrace(m.measured, 25.0);
