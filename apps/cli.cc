@@ -1,13 +1,14 @@
 #include "apps/cli.h"
 
+#include <CLI/CLI.hpp>
+#include <exception>
+#include <iostream>
+
 #include "apps/commands/bench_commands.h"
 #include "apps/commands/imaging_commands.h"
 #include "apps/commands/lab_commands.h"
 #include "apps/commands/motion_commands.h"
-
-#include <CLI/CLI.hpp>
-#include <exception>
-#include <iostream>
+#include "apps/commands/report_command.h"
 
 namespace echoservo::apps {
 
@@ -24,6 +25,7 @@ int RunCli(int argc, char** argv) {
   AddRenderCommand(app);
   AddStreamCommands(app);
   AddBenchCommands(app);
+  AddReportCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
