@@ -44,23 +44,19 @@ double Rms(const std::vector<double>& v) {
   return v.empty() ? kNaN : std::sqrt(s / static_cast<double>(v.size()));
 }
 
-PointSeries FoundTips(const hw::RunRecord& run) {
+// `field` (tip_mm or target_mm) of the volumes where the target was found, at acquired_s.
+PointSeries FoundVolumes(const hw::RunRecord& run, Eigen::Vector3d hw::TargetRecord::*field) {
   PointSeries s;
   for (const hw::TargetRecord& r : run.targets) {
-    if (r.found) s.Add(r.acquired_s, r.tip_mm);
+    if (r.found) s.Add(r.acquired_s, r.*field);
   }
   return s;
 }
 
 PointSeries TargetSeries(const hw::RunRecord& run) {
+  if (!run.has_truth) return FoundVolumes(run, &hw::TargetRecord::target_mm);
   PointSeries s;
-  if (run.has_truth) {
-    for (const hw::TruthRecord& r : run.truth) s.Add(r.t_s, r.target_mm);
-  } else {
-    for (const hw::TargetRecord& r : run.targets) {
-      if (r.found) s.Add(r.acquired_s, r.target_mm);
-    }
-  }
+  for (const hw::TruthRecord& r : run.truth) s.Add(r.t_s, r.target_mm);
   return s;
 }
 
@@ -399,7 +395,8 @@ AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
   AccuracyMetrics m;
   m.em = em;
   const PointSeries em_points = ValidEmPoints(em);
-  m.alignment = AlignEmToImage(em_points, FoundTips(run), o.alignment);
+  m.alignment =
+      AlignEmToImage(em_points, FoundVolumes(run, &hw::TargetRecord::tip_mm), o.alignment);
   const PointSeries target = TargetSeries(run);
   m.target_source = run.has_truth ? "truth.csv" : "targets.csv";
   const double target_gap = kGapPeriods * target.MedianPeriodS();

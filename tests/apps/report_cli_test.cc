@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <functional>
 #include <nlohmann/json.hpp>
@@ -131,6 +132,39 @@ TEST_F(ReportCli, RealAuroraExportIsImportedButRefusedForThisRun) {
   r = Report(Run(), "--em " + ShellQuote(kAurora.string()) + " --sensor d");
   EXPECT_EQ(r.rc, 1);
   EXPECT_NE(r.err.find("the EM sensor hardly moved"), std::string::npos) << r.err;
+}
+
+TEST_F(ReportCli, RealPlusTrackerLogIsImportedButRefusedForThisRun) {
+  const fs::path plus = fs::path(ECHOSERVO_DATA_DIR) / "plus" /
+                        "WaterTankBottomTranslationTrackerBuffer-trimmed.igs.mha";
+  RunResult r = Report(Run(), "--em " + ShellQuote(plus.string()));
+  EXPECT_EQ(r.rc, 1);
+  EXPECT_NE(r.err.find("3 tracked tools; choose one with --sensor"), std::string::npos) << r.err;
+  // The stylus lay still in the water tank.
+  r = Report(Run(), "--em " + ShellQuote(plus.string()) + " --sensor StylusToTracker");
+  EXPECT_EQ(r.rc, 1);
+  EXPECT_NE(r.err.find("the EM sensor hardly moved"), std::string::npos) << r.err;
+}
+
+TEST_F(ReportCli, KnownTransformOnTheCommandLine) {
+  std::string numbers;
+  const Eigen::Matrix4d t = run_->em_to_image.matrix();
+  for (int i = 0; i < 16; ++i) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%s%.17g", i ? "," : "", t(i / 4, i % 4));
+    numbers += buf;
+  }
+  RunResult r = Report(Run(), "--json --em-to-image " + numbers);
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(j["em_to_image_given"].get<bool>());
+  EXPECT_NEAR(j["em_time_offset_s"].get<double>(), run_->em_clock_offset_s, 1e-3);
+  r = Report(Run(), "--em-to-image 1,0,0,0,1");
+  EXPECT_EQ(r.rc, 1);
+  EXPECT_NE(r.err.find("expected 12 or 16 numbers"), std::string::npos) << r.err;
+  r = Report(Run(), "--em-to-image 2,0,0,0,0,1,0,0,0,0,1,0");
+  EXPECT_EQ(r.rc, 1);
+  EXPECT_NE(r.err.find("not a rigid transform"), std::string::npos) << r.err;
 }
 
 TEST_F(ReportCli, UnitsMustBeDeclared) {

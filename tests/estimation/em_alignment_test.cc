@@ -44,9 +44,10 @@ PointSeries ImageTips(const SyntheticRun& s) {
 }
 
 // Standard deviations the noise allows (isotropic σ per axis on N image tips): a point of
-// the fitted transform at the centroid σ/√N per axis; the rotation about each principal
-// axis σ / (√(s_j² + s_k²)·√N), s the tip's principal spreads; the clock offset
-// σ / √(Σ|v_i|²), v the tip velocity at the image times.
+// the fitted transform at the centroid σ/√N per axis; the rotation about principal axis i
+// σ / (√(s_j² + s_k²)·√N), s the tip's principal spreads, so the rotation angle's RMS is
+// the root sum of the three; the clock offset σ / √(Σ|v_i|²), v the tip velocity at the
+// image times.
 struct DerivedSd {
   double position_mm, rotation_rad, offset_s;
 };
@@ -60,8 +61,11 @@ DerivedSd Derive(const SyntheticRun& s, const EmAlignment& a) {
     const double h = 1e-4;
     v2 += ((s.TipAt(t + h) - s.TipAt(t - h)) / (2 * h)).squaredNorm();
   }
-  return {sigma / std::sqrt(n), sigma / (std::hypot(sp[1], sp[2]) * std::sqrt(n)),
-          sigma / std::sqrt(v2)};
+  const double rotation =
+      sigma / std::sqrt(n) *
+      std::sqrt(1 / (sp[1] * sp[1] + sp[2] * sp[2]) + 1 / (sp[0] * sp[0] + sp[2] * sp[2]) +
+                1 / (sp[0] * sp[0] + sp[1] * sp[1]));
+  return {sigma / std::sqrt(n), rotation, sigma / std::sqrt(v2)};
 }
 
 double RotationErrorRad(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
@@ -80,9 +84,9 @@ double MappedErrorMm(const SyntheticRun& s, const Eigen::Isometry3d& est) {
 
 TEST(EmAlignment, RecoversOffsetAndPoseWithinTheNoise) {
   SyntheticRun s;
-  s.duration_s = 30.0;
+  s.duration_s = 40.0;
   s.em_rate_hz = 40.0;
-  s.amplitude_mm = {10.0, 8.0, 6.0};  // a registration sweep
+  s.amplitude_mm = {12.0, 10.0, 8.0};  // a registration sweep
   s.image_noise_mm = 0.3;
   s.em_dropout_every = 9;
   const EmAlignment a = AlignEmToImage(EmSeries(s), ImageTips(s));
@@ -98,7 +102,8 @@ TEST(EmAlignment, RecoversOffsetAndPoseWithinTheNoise) {
       << "offset SD " << sd.offset_s;
   EXPECT_LT(RotationErrorRad(a.em_to_image, s.em_to_image), kMargin * sd.rotation_rad);
   EXPECT_LT(MappedErrorMm(s, a.em_to_image),
-            kMargin * (sd.position_mm + sd.rotation_rad * 3.0 * a.spread_mm[0]) + interpolation_mm);
+            kMargin * (std::sqrt(3.0) * sd.position_mm + sd.rotation_rad * 3.0 * a.spread_mm[0]) +
+                interpolation_mm);
   // The residual is the image noise: √3·σ per pair (3 axes), less the fitted parameters.
   EXPECT_NEAR(a.residual_rms_mm, std::sqrt(3.0) * s.image_noise_mm, 0.1 * s.image_noise_mm);
   EXPECT_GT(a.pairs, ImageTips(s).size() * 9 / 10);
