@@ -1,14 +1,15 @@
 #include "apps/cli.h"
 
+#include <CLI/CLI.hpp>
+#include <exception>
+#include <iostream>
+
 #include "apps/commands/bench_commands.h"
 #include "apps/commands/imaging_commands.h"
 #include "apps/commands/lab_commands.h"
 #include "apps/commands/live_commands.h"
 #include "apps/commands/motion_commands.h"
-
-#include <CLI/CLI.hpp>
-#include <exception>
-#include <iostream>
+#include "apps/commands/report_command.h"
 
 namespace echoservo::apps {
 
@@ -26,6 +27,7 @@ int RunCli(int argc, char** argv) {
   AddStreamCommands(app);
   AddBenchCommands(app);
   AddLiveCommands(app);
+  AddReportCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -4,6 +4,8 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <iomanip>
 #include <stdexcept>
 
@@ -29,6 +31,19 @@ void Table::Print(std::ostream& out) const {
   for (std::size_t w : width) total += w + 2;
   out << std::string(total > 2 ? total - 2 : 0, '-') << "\n";
   for (const auto& r : rows_) line(r);
+}
+
+void WriteFileAtomically(const std::string& path, const std::string& text) {
+  const std::filesystem::path target(path);
+  const std::filesystem::path tmp = target.string() + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error("cannot write " + tmp.string());
+    out << text;
+    out.close();
+    if (!out) throw std::runtime_error("error writing " + tmp.string());
+  }
+  std::filesystem::rename(tmp, target);
 }
 
 std::string Fixed(double value, int decimals) {

@@ -28,6 +28,10 @@ std::pair<std::string, double> ParseAssignment(const std::string& text);
 
 // Parses a comma-separated list of numbers (from e.g. --tip-loads 0,1,2).
 std::vector<double> ParseNumberList(const std::string& text, const std::string& option);
+// Writes `text` to `path` through a temporary file and a rename (no half-written report);
+// throws std::runtime_error naming the file on I/O errors.
+void WriteFileAtomically(const std::string& path, const std::string& text);
+
 // Splits on commas (empty items rejected).
 std::vector<std::string> SplitList(const std::string& text, const std::string& option);
 

@@ -8,6 +8,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "estimation/html_page.h"
 #include "estimation/svg_plot.h"
 #include "hw/effect_registry.h"
 
@@ -23,21 +24,12 @@ constexpr const char* kForceBar = "#aa3377";
 constexpr const char* kNoiseColor = "#2e7d32";
 constexpr int kHalfWidth = 570;  // chart width in the two-column grid (px)
 
+using html::Fix;
+using html::Row;
+using html::Sig;
+using html::Tag;
+
 std::string Esc(std::string_view s) { return svg::EscapeHtml(s); }
-
-std::string Fix(double v, int decimals) {
-  if (!std::isfinite(v)) return "&ndash;";
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-  return buf;
-}
-
-std::string Sig(double v, int digits) {
-  if (!std::isfinite(v)) return "&ndash;";
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
-  return buf;
-}
 
 // Escaped, with a line-break opportunity after every '_' (long trial names).
 std::string Breakable(std::string_view text) {
@@ -70,95 +62,6 @@ std::string Sentence(std::string text) {
   }
   if (!text.empty() && text.back() != '.') text += '.';
   return text;
-}
-
-std::string Now() {
-  const std::time_t now = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&now, &tm);
-  char buf[64];
-  std::strftime(buf, sizeof buf, "%Y-%m-%d %H:%M UTC", &tm);
-  return buf;
-}
-
-std::string Css() {
-  return std::string(
-             "*{box-sizing:border-box}"
-             "body{margin:0;background:#f4f5f7;color:#1d1d1f;font:14px/1.45 "
-             "system-ui,-apple-system,'Segoe UI',"
-             "Roboto,'Helvetica Neue',Arial,sans-serif}"
-             "main{max-width:1220px;margin:0 auto;padding:20px 24px 40px}"
-             "header.top{background:#1f2d3d;color:#fff;border-radius:8px;padding:18px "
-             "22px;margin-bottom:18px}"
-             "header.top h1{margin:0 0 4px;font-size:22px;font-weight:600}"
-             "header.top .sub{color:#c8d3df;margin:0 0 12px}"
-             "dl.facts{display:grid;grid-template-columns:repeat(auto-fill,minmax(260px,1fr));gap:"
-             "8px 22px;margin:0}"
-             "dl.facts div{min-width:0}"
-             "dl.facts dt{font-size:12px;letter-spacing:.02em;color:#9fb3c8}"
-             "dl.facts dd{margin:0;font-weight:500;overflow-wrap:anywhere}"
-             "nav.toc{margin:0 0 16px;font-size:13px}"
-             "nav.toc a{margin-right:14px;color:#0b5cad;text-decoration:none}"
-             "section{background:#fff;border:1px solid #dfe3e8;border-radius:8px;padding:16px "
-             "20px;margin-bottom:18px}"
-             "h2{font-size:18px;margin:0 0 10px;font-weight:600}"
-             "h3{font-size:15px;margin:18px 0 6px;font-weight:600;overflow-wrap:anywhere}"
-             "p.note{color:#555;margin:4px 0 12px;font-size:13px}"
-             "table{border-collapse:collapse;font-size:13px;margin:6px 0 12px}"
-             "th,td{padding:4px 10px;border-bottom:1px solid "
-             "#e6e9ed;text-align:right;white-space:nowrap}"
-             "th{background:#f0f2f5;font-weight:600;color:#333}"
-             "td.l,th.l{text-align:left}"
-             "tr.sig td{background:#fff4e5}"
-             "tr.final td{font-weight:600}"
-             "td.name{white-space:normal;overflow-wrap:break-word;min-width:220px}"
-             ".scroll{max-height:420px;overflow-y:auto;overflow-x:auto;border:1px solid "
-             "#eceff2;border-radius:4px}"
-             ".scroll table{margin:0;width:100%}"
-             ".scroll th{position:sticky;top:0}"
-             ".grid2{display:grid;grid-template-columns:repeat(auto-fit,minmax(520px,1fr));gap:"
-             "12px 18px;"
-             "align-items:start}"
-             ".grid2>div{min-width:0}"
-             ".verdict{border-radius:6px;padding:10px 14px;margin:8px 0 12px;font-size:14px}"
-             ".verdict b{margin-right:6px}"
-             ".verdict.ok{background:#e8f5e9;border-left:5px solid #2e7d32}"
-             ".verdict.miss{background:#fff3e0;border-left:5px solid #e66101}"
-             "ol.evidence{padding-left:22px;margin:6px 0}"
-             "ol.evidence li{margin:4px 0;color:#333}"
-             ".tag{display:inline-block;font-size:11px;padding:1px "
-             "7px;border-radius:10px;font-weight:600}"
-             ".tag.yes{background:#e8f5e9;color:#1b5e20}.tag.no{background:#eceff1;color:#546e7a}"
-             ".tag.miss{background:#fff3e0;color:#a84300}"
-             ".trial-panel{border-top:1px solid #e6e9ed;margin-top:14px;padding-top:4px}"
-             ".trial-panel .cfg{color:#555;font-size:13px;margin:0 0 8px}"
-             ".selector{margin:8px 0 4px;font-size:13px}"
-             ".selector select{font:inherit;padding:3px 6px;margin-left:6px;max-width:100%}"
-             "code{font-family:ui-monospace,Menlo,Consolas,monospace;font-size:12.5px;background:#"
-             "f0f2f5;"
-             "padding:1px 4px;border-radius:3px;overflow-wrap:anywhere}"
-             "header.top code{background:#2c3e50;color:#fff}"
-             "details{margin:6px 0 0}summary{cursor:pointer;color:#0b5cad;font-size:13px}"
-             "footer{color:#777;font-size:12px;text-align:center;margin-top:10px}"
-             "[hidden]{display:none!important}") +
-         std::string(svg::ChartCss());
-}
-
-// One table row; cells are HTML. The first `left` cells are left-aligned (text), the
-// others right-aligned (numbers).
-std::string Row(const std::vector<std::string>& cells, const std::string& row_class = "",
-                bool header = false, std::size_t left = 1) {
-  std::string s = row_class.empty() ? "<tr>" : "<tr class=\"" + row_class + "\">";
-  const std::string tag = header ? "th" : "td";
-  for (std::size_t i = 0; i < cells.size(); ++i) {
-    s += "<" + tag + (i < left ? " class=\"l\">" : ">") + cells[i] + "</" + tag + ">";
-  }
-  return s + "</tr>";
-}
-
-std::string Tag(bool yes, const std::string& yes_text = "yes", const std::string& no_text = "no") {
-  return yes ? "<span class=\"tag yes\">" + yes_text + "</span>"
-             : "<span class=\"tag no\">" + no_text + "</span>";
 }
 
 double Duration(const hw::Trial& t) { return t.size() > 1 ? t.t_s.back() - t.t_s.front() : 0.0; }
@@ -216,15 +119,13 @@ std::string HeaderHtml(const Context& c) {
        "<code>" + Esc(c.final_spec) + "</code> " +
            (c.ladder.back().diagnosis.adequate ? "<span class=\"tag yes\">adequate</span>"
                                                : "<span class=\"tag miss\">not adequate</span>")},
-      {"Generated", Esc(c.o.generated.empty() ? Now() : c.o.generated)},
+      {"Generated", Esc(c.o.generated.empty() ? html::NowUtc() : c.o.generated)},
   };
   std::string s =
-      "<header class=\"top\"><h1>Model lab report</h1><p class=\"sub\">echoservo &middot; catheter "
-      "model <b>" +
-      Esc(c.spec) +
-      "</b> fitted to bench recordings, its error ladder and diagnosis</p><dl class=\"facts\">";
-  for (const auto& [k, v] : facts) s += "<div><dt>" + k + "</dt><dd>" + v + "</dd></div>";
-  s += "</dl></header>";
+      html::TopHeader("Model lab report",
+                      "echoservo &middot; catheter model <b>" + Esc(c.spec) +
+                          "</b> fitted to bench recordings, its error ladder and diagnosis",
+                      facts);
   s += "<nav class=\"toc\"><a href=\"#ladder\">Error ladder</a><a href=\"#diagnosis\">Diagnosis</a>"
        "<a href=\"#parameters\">Parameters</a><a href=\"#trials\">Trials</a><a "
        "href=\"#breakdown\">Where the "
@@ -620,24 +521,20 @@ std::string RenderLabReport(const LabDataset& ds, const std::vector<LadderStep>&
                   Spec(ladder.front().model),
                   Spec(ladder.back().model),
                   ladder.size() == 1};
-  std::string html =
-      "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
-      "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
-      "<link rel=\"icon\" href=\"data:,\"><title>Model lab report: " +
-      Esc(c.spec) + "</title><style>" + Css() + "</style></head><body><main>\n";
-  html += HeaderHtml(c) + "\n";
-  html += LadderHtml(c) + "\n";
-  html += DiagnosisHtml(c) + "\n";
-  html += ParametersHtml(c) + "\n";
-  html += TrialsHtml(c) + "\n";
-  html += BreakdownHtml(c) + "\n";
-  html +=
+  std::string page = html::PageStart("Model lab report: " + Esc(c.spec));
+  page += HeaderHtml(c) + "\n";
+  page += LadderHtml(c) + "\n";
+  page += DiagnosisHtml(c) + "\n";
+  page += ParametersHtml(c) + "\n";
+  page += TrialsHtml(c) + "\n";
+  page += BreakdownHtml(c) + "\n";
+  page +=
       "<footer>Generated by <code>echoservo lab report</code>. Self-contained page: no external "
       "resources."
       "</footer></main>";
-  html += kSelectorScript;
-  html += "</body></html>\n";
-  return html;
+  page += kSelectorScript;
+  page += "</body></html>\n";
+  return page;
 }
 
 }  // namespace echoservo::estimation

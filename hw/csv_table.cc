@@ -92,6 +92,10 @@ using csv::ParseNumber;
 using csv::Quote;
 using csv::Trim;
 
+std::size_t CsvTable::Index(std::string_view name) const {
+  return static_cast<std::size_t>(std::find(names.begin(), names.end(), name) - names.begin());
+}
+
 CsvTable ReadCsvTable(const fs::path& path, const CsvTableSpec& spec) {
   std::ifstream in(path, std::ios::binary);
   if (!in) Fail(path, "cannot open file for reading");
@@ -104,6 +108,7 @@ CsvTable ReadCsvTable(const fs::path& path, const CsvTableSpec& spec) {
   std::size_t t_col = 0;
   std::optional<std::size_t> blank_line;  // first blank line after the header, if any
   std::size_t prev_line_no = 0;           // line of the previous sample
+  std::vector<bool> is_text;              // per column: kept as text
 
   while (std::getline(in, line)) {
     ++line_no;
@@ -160,6 +165,12 @@ CsvTable ReadCsvTable(const fs::path& path, const CsvTableSpec& spec) {
       t_col = static_cast<std::size_t>(
           std::find(csv.names.begin(), csv.names.end(), spec.time_column) - csv.names.begin());
       csv.values.resize(csv.names.size());
+      csv.text.resize(csv.names.size());
+      is_text.assign(csv.names.size(), false);
+      for (const std::string& name : spec.text_columns) {
+        const std::size_t c = csv.Index(name);
+        if (c < csv.names.size() && c != t_col) is_text[c] = true;
+      }
       fields.resize(csv.names.size());
       have_header = true;
       continue;
@@ -195,6 +206,10 @@ CsvTable ReadCsvTable(const fs::path& path, const CsvTableSpec& spec) {
 
     for (std::size_t c = 0; c < fields.size(); ++c) {
       const std::string_view field = Trim(fields[c]);
+      if (is_text[c]) {
+        csv.text[c].emplace_back(field);
+        continue;
+      }
       double v = 0.0;
       const NumberStatus status = ParseNumber(field, v);
       if (status != NumberStatus::kOk) {
@@ -222,7 +237,7 @@ CsvTable ReadCsvTable(const fs::path& path, const CsvTableSpec& spec) {
   }
   if (in.bad()) Fail(path, "read error");
   if (!have_header) Fail(path, "empty file (no header line)");
-  const std::size_t samples = csv.values.front().size();
+  const std::size_t samples = csv.lines.size();
   if (samples < spec.min_rows) {
     Fail(path, "has " + std::to_string(samples) + " sample(s); " + spec.what + " needs at least " +
                    std::to_string(spec.min_rows));

@@ -1,7 +1,8 @@
 // Strict reader of numeric CSV tables with a header line, shared by the trial format
 // (hw/trial.h) and target-motion traces (estimation/motion_trace.h).
 //
-// Every cell must be one finite decimal number (NaN and infinity are rejected), every
+// Every cell must be one finite decimal number (NaN and infinity are rejected) except in
+// the columns the spec names as text, every
 // row has as many fields as the header, the time column is strictly increasing, blank
 // lines may only trail the data. A bad file throws CsvFormatError naming the file, the
 // line, the column and why. Units are whatever the caller's format says.
@@ -24,14 +25,21 @@ struct CsvTableSpec {
   std::vector<std::string> required;  // columns that must be in the header
   std::string required_hint;          // appended to a missing-column error, e.g. "(required: …)"
   std::string time_column = "t";      // must be present and strictly increasing
+  // Columns kept as text (trimmed, any content but a comma), e.g. a status or mode label;
+  // they must be in `required` or the header to be read.
+  std::vector<std::string> text_columns;
   std::size_t min_rows = 2;
   std::string what = "a table";  // "…; <what> needs at least <min_rows>"
 };
 
 struct CsvTable {
-  std::vector<std::string> names;           // in file order
-  std::vector<std::vector<double>> values;  // one vector per column, file order
-  std::vector<std::size_t> lines;           // file line of every row
+  std::vector<std::string> names;              // in file order
+  std::vector<std::vector<double>> values;     // one vector per column (empty for text)
+  std::vector<std::vector<std::string>> text;  // one vector per text column (else empty)
+  std::vector<std::size_t> lines;              // file line of every row
+
+  // Index of column `name` in `names`, or names.size() when absent.
+  std::size_t Index(std::string_view name) const;
 };
 
 // Throws CsvFormatError.

@@ -246,20 +246,6 @@ struct ReportFlags {
   int plot_trials = 4;
 };
 
-// Writes `html` to `path` through a temporary file and a rename (no half-written report).
-void WriteReportFile(const std::string& path, const std::string& html) {
-  const std::filesystem::path target(path);
-  const std::filesystem::path tmp = target.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error("lab report: cannot write " + tmp.string());
-    out << html;
-    out.close();
-    if (!out) throw std::runtime_error("lab report: error writing " + tmp.string());
-  }
-  std::filesystem::rename(tmp, target);
-}
-
 void RunReport(const ReportFlags& f) {
   const estimation::LabDataset ds = Load(f.common);
   const auto effects = hw::ParseModelSpec(f.common.model, hw::EffectRegistry::WithBuiltinEffects());
@@ -272,7 +258,7 @@ void RunReport(const ReportFlags& f) {
   ro.max_rounds = f.max_rounds;
   ro.plot_trials = static_cast<std::size_t>(f.plot_trials);
   o.fit.progress("report: writing " + f.out);
-  WriteReportFile(f.out, estimation::RenderLabReport(ds, ladder, ro));
+  WriteFileAtomically(f.out, estimation::RenderLabReport(ds, ladder, ro));
   std::vector<std::string> models;
   for (const auto& step : ladder) models.push_back(hw::FormatModelSpec(step.model));
   const bool adequate = ladder.back().diagnosis.adequate;

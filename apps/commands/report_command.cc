@@ -1,0 +1,136 @@
+// `echoservo report RUN`: tip-to-target accuracy from an EM-tracker log, latency and
+// dropped frames of a recorded run, as HTML and JSON.
+#include "apps/commands/report_command.h"
+
+#include <CLI/CLI.hpp>
+#include <Eigen/Geometry>
+#include <iostream>
+#include <memory>
+#include <stdexcept>
+
+#include "apps/output.h"
+#include "estimation/accuracy_report.h"
+#include "hw/run_record.h"
+#include "imaging/io/em_log_import.h"
+
+namespace echoservo::apps {
+namespace {
+
+struct ReportFlags {
+  std::string run;
+  std::string em;
+  std::string em_format = "auto";
+  std::string em_units;
+  std::string sensor;
+  std::string out;
+  std::string em_to_image;
+  double max_offset_s = 2.0;
+  double offset_center_s = std::numeric_limits<double>::quiet_NaN();
+  int phase_bins = 10;
+  bool json = false;
+};
+
+constexpr double kRigidTolerance = 1e-3;
+
+// 12 or 16 numbers, row-major: a rigid transform (mm).
+Eigen::Isometry3d ParseTransform(const std::string& text) {
+  const std::vector<double> v = ParseNumberList(text, "--em-to-image");
+  if (v.size() != 12 && v.size() != 16) {
+    throw std::invalid_argument(
+        "--em-to-image: expected 12 or 16 numbers (a 3x4 or 4x4 matrix, "
+        "row-major, mm), got " +
+        std::to_string(v.size()));
+  }
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  for (std::size_t i = 0; i < v.size(); ++i)
+    m(static_cast<Eigen::Index>(i / 4), static_cast<Eigen::Index>(i % 4)) = v[i];
+  const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
+  if ((r.transpose() * r - Eigen::Matrix3d::Identity()).norm() > kRigidTolerance ||
+      r.determinant() < 0.0 || (m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() > 0.0) {
+    throw std::invalid_argument(
+        "--em-to-image: not a rigid transform (a rotation and a translation)");
+  }
+  Eigen::Isometry3d t;
+  t.matrix() = m;
+  return t;
+}
+
+void RunReport(const ReportFlags& f) {
+  const hw::RunRecord run = hw::ReadRunRecord(f.run);
+  std::string em_path = f.em;
+  if (em_path.empty()) {
+    if (!run.has_em) {
+      throw std::invalid_argument(f.run + ": the run has no em.csv; give the EM log with --em");
+    }
+    em_path = run.EmPath().string();
+  }
+  hw::EmImportOptions io;
+  io.format = hw::ParseEmLogFormat(f.em_format);
+  if (!f.em_units.empty()) io.units = hw::ParseLengthUnit(f.em_units);
+  io.sensor = f.sensor;
+  const hw::EmLog em = imaging::ReadEmLog(em_path, io);
+
+  estimation::AccuracyOptions ao;
+  ao.alignment.max_offset_s = f.max_offset_s;
+  ao.alignment.offset_center_s = f.offset_center_s;
+  if (!f.em_to_image.empty()) ao.alignment.em_to_image = ParseTransform(f.em_to_image);
+  ao.phase_bins = f.phase_bins;
+  const estimation::AccuracyMetrics m = estimation::ComputeAccuracy(run, em, ao);
+
+  estimation::AccuracyReportOptions ro;
+  ro.run_path = f.run;
+  ro.em_path = em_path;
+  WriteFileAtomically(f.out, estimation::RenderAccuracyReport(run, m, ro));
+  if (f.json) {
+    std::cout << estimation::AccuracyJson(m, ro) << "\n";
+    return;
+  }
+  std::cout << "wrote " << f.out << "\n"
+            << "tip-to-target RMS " << Fixed(m.rms_mm, 3) << " mm over " << m.error_mm.size()
+            << " EM samples against " << m.target_source << " (seed "
+            << Fixed(ro.reference_rms_mm, 2) << " mm)\n"
+            << "EM: " << em.samples.size() << " samples, " << em.dropouts()
+            << " drop-outs; clock offset " << Fixed(m.alignment.em_time_offset_s, 4)
+            << " s, registration RMS " << Fixed(m.alignment.residual_rms_mm, 3) << " mm over "
+            << m.alignment.pairs << " pairs\n";
+  if (m.latency.count > 0) {
+    std::cout << "latency p50/p95/p99/max " << Fixed(m.latency.p50_ms, 1) << "/"
+              << Fixed(m.latency.p95_ms, 1) << "/" << Fixed(m.latency.p99_ms, 1) << "/"
+              << Fixed(m.latency.max_ms, 1) << " ms\n";
+  }
+  std::cout << "dropped frames " << m.dropped.total() << " of " << m.dropped.volumes << "\n";
+  for (const std::string& n : m.notes) std::cout << "note: " << n << "\n";
+}
+
+}  // namespace
+
+void AddReportCommand(CLI::App& app) {
+  auto f = std::make_shared<ReportFlags>();
+  auto* cmd = app.add_subcommand(
+      "report",
+      "Accuracy of a recorded run: tip-to-target error from an EM-tracker log, per beat "
+      "and heartbeat phase, latency, dropped frames (HTML and JSON)");
+  cmd->add_option("RUN", f->run, "RUN directory (run.json, targets.csv, …; docs/report.md)")
+      ->required();
+  cmd->add_option("--em", f->em, "EM-tracker log (default: RUN/em.csv)");
+  cmd->add_option("--em-format", f->em_format, "auto|plus|aurora|sim (default auto)");
+  cmd->add_option("--em-units", f->em_units,
+                  "mm|in: the EM log's units (default: the file's own, else mm; inches must be "
+                  "declared)");
+  cmd->add_option(
+      "--sensor", f->sensor,
+      "Aurora: sensor index (1-based) or letter; PLUS: tool name (e.g. StylusToTracker)");
+  cmd->add_option("--out", f->out, "HTML report to write")->required();
+  cmd->add_option("--max-offset", f->max_offset_s,
+                  "Half-width of the EM clock offset search, s (default 2)");
+  cmd->add_option("--offset-center", f->offset_center_s,
+                  "Centre of the offset search, s (default: first volume time − first EM time)");
+  cmd->add_option("--em-to-image", f->em_to_image,
+                  "Known EM→image transform, 12 or 16 comma-separated numbers, row-major, mm: "
+                  "only the clock offset is estimated");
+  cmd->add_option("--phase-bins", f->phase_bins, "Heartbeat phase bins (default 10)");
+  cmd->add_flag("--json", f->json, "Print the figures as JSON");
+  cmd->callback([f] { RunReport(*f); });
+}
+
+}  // namespace echoservo::apps
