@@ -53,10 +53,23 @@ PointSeries FoundVolumes(const hw::RunRecord& run, Eigen::Vector3d hw::TargetRec
   return s;
 }
 
+// The target, less the run's standoff along the mean tracked catheter axis (where the tip
+// should be) when run.json gives one.
 PointSeries TargetSeries(const hw::RunRecord& run) {
-  if (!run.has_truth) return FoundVolumes(run, &hw::TargetRecord::target_mm);
   PointSeries s;
-  for (const hw::TruthRecord& r : run.truth) s.Add(r.t_s, r.target_mm);
+  if (!run.has_truth) {
+    s = FoundVolumes(run, &hw::TargetRecord::target_mm);
+  } else {
+    for (const hw::TruthRecord& r : run.truth) s.Add(r.t_s, r.target_mm);
+  }
+  if (!run.info.standoff_mm || *run.info.standoff_mm == 0.0) return s;
+  Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+  for (const hw::TargetRecord& r : run.targets)
+    if (r.found) axis += r.axis;
+  if (!(axis.norm() > 0.0))
+    throw std::invalid_argument("report: run.json gives a standoff but targets.csv has no tracked axis");
+  axis.normalize();
+  for (auto& p : s.p_mm) p -= *run.info.standoff_mm * axis;
   return s;
 }
 

@@ -108,13 +108,20 @@ RunInfo ReadRunJson(const fs::path& path) {
     }
     info.heart_rate_hz = hr.get<double>();
   }
+  if (j.contains("standoff_mm") && !j["standoff_mm"].is_null()) {
+    const Json& so = j["standoff_mm"];
+    if (!so.is_number() || !(so.get<double>() >= 0.0) || so.get<double>() > 50.0) {
+      Fail(path, "key 'standoff_mm': " + so.dump() + " is not a number in [0, 50] mm");
+    }
+    info.standoff_mm = so.get<double>();
+  }
   if (j.contains("notes")) {
     if (!j["notes"].is_string()) Fail(path, "key 'notes' must be a string");
     info.notes = j["notes"].get<std::string>();
   }
   Json meta = Json::object();
   for (const auto& [key, value] : j.items()) {
-    if (key != "format" && key != "version" && key != "heart_rate_hz" && key != "notes") {
+    if (key != "format" && key != "version" && key != "heart_rate_hz" && key != "notes" && key != "standoff_mm") {
       meta[key] = value;
     }
   }

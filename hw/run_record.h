@@ -35,6 +35,9 @@ namespace echoservo::hw {
 
 struct RunInfo {
   std::optional<double> heart_rate_hz;  // (0, 10] when given
+  // The servo's tip-to-target standoff along the catheter axis, [0, 50] mm when given: the
+  // report measures the tip against the target less the standoff (where the tip should be).
+  std::optional<double> standoff_mm;
   std::string notes;
   // The other keys of run.json as a JSON object text ("{}" when none); the writer merges
   // them in.

@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <memory>
 #include <stdexcept>
 
@@ -73,7 +74,19 @@ void RunReport(const ReportFlags& f) {
   estimation::AccuracyOptions ao;
   ao.alignment.max_offset_s = f.max_offset_s;
   ao.alignment.offset_center_s = f.offset_center_s;
-  if (!f.em_to_image.empty()) ao.alignment.em_to_image = ParseTransform(f.em_to_image);
+  if (!f.em_to_image.empty()) {
+    ao.alignment.em_to_image = ParseTransform(f.em_to_image);
+  } else {
+    // A run may carry its EM→image calibration (run.json "em_to_image": 12 or 16 numbers,
+    // row-major, mm), measured before the run: a catheter moving along its axis cannot
+    // give the rotation about it.
+    const auto meta = nlohmann::json::parse(run.info.metadata_json, nullptr, false);
+    if (meta.is_object() && meta.contains("em_to_image")) {
+      if (!meta["em_to_image"].is_string())
+        throw std::invalid_argument(f.run + "/run.json: key 'em_to_image' must be a string of 12 or 16 numbers");
+      ao.alignment.em_to_image = ParseTransform(meta["em_to_image"].get<std::string>());
+    }
+  }
   ao.phase_bins = f.phase_bins;
   const estimation::AccuracyMetrics m = estimation::ComputeAccuracy(run, em, ao);
 

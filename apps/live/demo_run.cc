@@ -85,6 +85,17 @@ std::string Fmt(const char* f, auto... args) {
   return buf;
 }
 
+// The 3 × 4 rows of a rigid transform, comma-separated (run.json "em_to_image").
+std::string RowMajor(const Eigen::Isometry3d& t) {
+  std::string out;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) {
+      if (!out.empty()) out += ',';
+      out += Fmt("%.9g", t.matrix()(r, c));
+    }
+  return out;
+}
+
 }  // namespace
 
 void DemoOptions::Validate() const {
@@ -202,8 +213,8 @@ DemoResult RunDemo(const DemoOptions& o) {
   std::thread tracker_thread([&] {
     tracking::RadonDetector detector;
     estimation::HeartbeatEkfOptions ekf_options;
-    ekf_options.init_window_s = 3.0;
-    ekf_options.max_harmonics = 4;
+    ekf_options.init_window_s = 2.0;
+    ekf_options.max_harmonics = 8;
     estimation::HeartbeatEkf ekf(ekf_options);
     std::optional<tracking::Line3> reference;  // the axis coordinates' reference line
     while (true) {
@@ -238,7 +249,7 @@ DemoResult RunDemo(const DemoOptions& o) {
       const bool ok = det.found && det.target_found;
       if (!ok) {
         ++dropped;
-        targets_csv.Row(Fmt("%.6f,%.6f,,0,,,,,,,,,,%.3f", d.acquired_s, arrived, det.confidence));
+        targets_csv.Row(Fmt("%.6f,%.6f,%.6f,0,0,0,0,0,0,0,0,0,0,%.3f", d.acquired_s, arrived, now_s(), det.confidence));
         continue;
       }
       ++detected;
@@ -283,9 +294,12 @@ DemoResult RunDemo(const DemoOptions& o) {
     control::AdaptiveOptions ao;
     ao.initial_width_mm = plant_options.config.TotalBendRad() * plant_options.config.GapMm();
     ao.max_acceleration_mm_s2 = loop.config().limits.max_acceleration_mm_s2;
-    control::AdaptiveInverse compensator(ao);
+    // The static inverse: the adaptive one learned poorly from a reference that changes with
+    // every volume (servo tracking 1.2 mm RMS against 0.19 mm with the static inverse).
+    control::StaticInverse compensator(ao.initial_width_mm, ao.max_acceleration_mm_s2);
     control::FollowerConfig fc;
     fc.standoff_mm = o.standoff_mm;
+    fc.offset_gain = 0.05;
     control::TargetFollower follower(fc);
     hw::SimEmTracker em(eo, 0.0);
     const std::size_t tip_index = plant.StateIndex(hw::iface::kTipPosition);
@@ -377,8 +391,9 @@ DemoResult RunDemo(const DemoOptions& o) {
     std::ofstream run(o.out_dir / "run.json");
     run << Fmt(
         "{\"format\": \"echoservo-run\", \"version\": 1, \"heart_rate_hz\": %.6f, \"standoff_mm\": %.3f, "
-        "\"source\": \"echoservo demo\", \"seed\": %llu, \"duration_s\": %.3f}\n",
-        o.heart_rate_bpm / 60.0, o.standoff_mm, static_cast<unsigned long long>(o.seed), o.duration_s);
+        "\"source\": \"echoservo demo\", \"seed\": %llu, \"duration_s\": %.3f, \"em_to_image\": \"%s\"}\n",
+        o.heart_rate_bpm / 60.0, o.standoff_mm, static_cast<unsigned long long>(o.seed), o.duration_s,
+        RowMajor(em_to_image).c_str());
   }
   return result;
 }

@@ -33,7 +33,7 @@ struct DemoOptions {
   double delay_max_s = 0.10;
   double heart_rate_bpm = 60.0;  // target: the mitral annulus trajectory, [30, 180]
   double target_p2p_mm = 10.0;   // its peak-to-peak excursion, (0, 20]
-  double standoff_mm = 5.0;      // [0, 30]; the detector needs ≥ 4 mm of gap to see the target
+  double standoff_mm = 8.0;      // [0, 30]; the detector needs ≥ 4 mm of gap to see the target, plus margin
   double metrics_start_s = 3.0;
   std::uint64_t seed = 1;
   std::filesystem::path out_dir;  // the RUN directory (docs/report.md); empty: not written
