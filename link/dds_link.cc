@@ -198,8 +198,9 @@ void ParticipantOptions::Validate() const {
   if (domain_id < 0 || domain_id > kMaxDomainId) {
     throw std::invalid_argument("ParticipantOptions.domain_id must be 0.." + std::to_string(kMaxDomainId));
   }
-  if (loopback_only && (!interfaces.empty() || !initial_peers.empty())) {
-    throw std::invalid_argument("ParticipantOptions.loopback_only excludes interfaces and initial_peers");
+  if (loopback_only && (!interfaces.empty() || !initial_peers.empty() || !shared_memory)) {
+    throw std::invalid_argument(
+        "ParticipantOptions.loopback_only excludes interfaces, initial_peers and shared_memory = false");
   }
   for (const std::string& address : interfaces) {
     if (!ValidIpv4(address)) {
@@ -246,12 +247,15 @@ struct Participant::Impl {
       IPLocator::setIPv4(peer, 127, 0, 0, 1);
       qos.wire_protocol().builtin.initialPeersList.push_back(peer);
     }
-    if (!o.interfaces.empty()) {
+    if (!o.interfaces.empty() || !o.shared_memory) {
       auto udp = std::make_shared<rtps::UDPv4TransportDescriptor>();
       udp->interfaceWhiteList = o.interfaces;
       udp->maxInitialPeersRange = kInitialPeersRange;
       qos.transport().use_builtin_transports = false;
-      qos.transport().user_transports = {udp, std::make_shared<rtps::SharedMemTransportDescriptor>()};
+      qos.transport().user_transports = {udp};
+      if (o.shared_memory) {
+        qos.transport().user_transports.push_back(std::make_shared<rtps::SharedMemTransportDescriptor>());
+      }
     }
     for (const std::string& p : o.initial_peers) qos.wire_protocol().builtin.initialPeersList.push_back(PeerLocator(p));
     for (const auto& [property, value] : o.properties) qos.properties().properties().emplace_back(property, value);

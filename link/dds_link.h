@@ -46,6 +46,9 @@ struct ParticipantOptions {
   // to where multicast does not pass (without a port: the first participants' ports).
   std::vector<std::string> interfaces;
   std::vector<std::string> initial_peers;
+  // Fast DDS's shared-memory transport for peers on the same host (beside UDPv4). Off:
+  // UDPv4 only, as between two hosts (network namespaces on one host share /dev/shm).
+  bool shared_memory = true;
   // An XML profiles file and the participant profile in it to start from. Without one,
   // the default QoS, which Fast DDS reads from FASTRTPS_DEFAULT_PROFILES_FILE if set.
   std::string profiles_file;
@@ -55,7 +58,8 @@ struct ParticipantOptions {
   std::vector<std::pair<std::string, std::string>> properties;
 
   // Throws std::invalid_argument naming the option for a bad domain, address or port,
-  // loopback_only with interfaces or peers, or a profile without a file.
+  // loopback_only with interfaces, peers or shared_memory off, or a profile without a
+  // file.
   void Validate() const;
 };
 
