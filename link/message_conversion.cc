@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "echoservo_msgs/msg/CatheterState.h"
 #include "echoservo_msgs/msg/ServoCommand.h"
@@ -38,96 +39,106 @@ static_assert(command_constants::ACTION_SET_STANDOFF == static_cast<std::uint8_t
 static_assert(command_constants::ACTION_ENABLE == kMinServoAction);
 static_assert(command_constants::ACTION_SET_STANDOFF == kMaxServoAction);
 
-std::array<double, 3> ToArray(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
-Eigen::Vector3d FromArray(const std::array<double, 3>& a) { return {a[0], a[1], a[2]}; }
+// One field between the wire type and the plain sample, each way. Same types copy by
+// assignment (vectors keep their capacity), enums and integers convert, and Eigen
+// vectors go to and from the IDL's double[3].
+struct ToWire {
+  template <class Wire, class Plain>
+  void operator()(Wire& wire, const Plain& plain) const {
+    if constexpr (std::is_same_v<Wire, Plain>) {
+      wire = plain;
+    } else {
+      wire = static_cast<Wire>(plain);
+    }
+  }
+  void operator()(std::array<double, 3>& wire, const Eigen::Vector3d& plain) const {
+    wire = {plain.x(), plain.y(), plain.z()};
+  }
+};
+
+struct FromWire {
+  template <class Wire, class Plain>
+  void operator()(const Wire& wire, Plain& plain) const {
+    if constexpr (std::is_same_v<Wire, Plain>) {
+      plain = wire;
+    } else {
+      plain = static_cast<Plain>(wire);  // any uint8 for enums: validation checks the range
+    }
+  }
+  void operator()(const std::array<double, 3>& wire, Eigen::Vector3d& plain) const {
+    plain = {wire[0], wire[1], wire[2]};
+  }
+};
+
+// The field lists, once for both directions: `m` and `s` are const on the source side.
+template <class Message, class Sample, class Copy>
+void TargetFields(Message& m, Sample& s, Copy copy) {
+  copy(m.sequence_number(), s.sequence_number);
+  copy(m.acquisition_time_s(), s.acquisition_time_s);
+  copy(m.publication_time_s(), s.publication_time_s);
+  copy(m.target_mm(), s.target_mm);
+  copy(m.axis(), s.axis);
+  copy(m.tip_mm(), s.tip_mm);
+  copy(m.motion_t0_s(), s.motion.t0_s);
+  copy(m.motion_phase0_rad(), s.motion.phase0_rad);
+  copy(m.motion_frequency_hz(), s.motion.frequency_hz);
+  copy(m.motion_offset_mm(), s.motion.offset_mm);
+  copy(m.motion_drift_mm_s(), s.motion.drift_mm_s);
+  copy(m.motion_cos_mm(), s.motion.cos_mm);
+  copy(m.motion_sin_mm(), s.motion.sin_mm);
+  copy(m.motion_valid_until_s(), s.motion.valid_until_s);
+  copy(m.confidence(), s.confidence);
+}
+
+template <class Message, class Sample, class Copy>
+void StateFields(Message& m, Sample& s, Copy copy) {
+  copy(m.sequence_number(), s.sequence_number);
+  copy(m.stamp_s(), s.stamp_s);
+  copy(m.mode(), s.mode);
+  copy(m.faults(), s.faults);
+  copy(m.fault_count(), s.fault_count);
+  copy(m.base_mm(), s.base_mm);
+  copy(m.base_velocity_mm_s(), s.base_velocity_mm_s);
+  copy(m.tip_estimate_mm(), s.tip_estimate_mm);
+  copy(m.setpoint_mm(), s.setpoint_mm);
+  copy(m.force_n(), s.force_n);
+  copy(m.standoff_mm(), s.standoff_mm);
+  copy(m.estimate_age_s(), s.estimate_age_s);
+}
+
+template <class Message, class Sample, class Copy>
+void CommandFields(Message& m, Sample& s, Copy copy) {
+  copy(m.sequence_number(), s.sequence_number);
+  copy(m.stamp_s(), s.stamp_s);
+  copy(m.action(), s.action);
+  copy(m.standoff_mm(), s.standoff_mm);
+}
 
 }  // namespace
 
 void ToMessage(const TargetEstimateSample& s, echoservo_msgs::msg::TargetEstimate& m) {
-  const estimation::FourierMotion& motion = s.motion;
-  const std::size_t harmonics = std::max(motion.cos_mm.size(), motion.sin_mm.size());
+  const std::size_t harmonics = std::max(s.motion.cos_mm.size(), s.motion.sin_mm.size());
   if (harmonics > kMaxHarmonics) {
     throw std::invalid_argument("TargetEstimateSample.motion: " + std::to_string(harmonics) +
                                 " harmonics, the link carries at most " + std::to_string(kMaxHarmonics));
   }
-  m.sequence_number(s.sequence_number);
-  m.acquisition_time_s(s.acquisition_time_s);
-  m.publication_time_s(s.publication_time_s);
-  m.target_mm(ToArray(s.target_mm));
-  m.axis(ToArray(s.axis));
-  m.tip_mm(ToArray(s.tip_mm));
-  m.motion_t0_s(motion.t0_s);
-  m.motion_phase0_rad(motion.phase0_rad);
-  m.motion_frequency_hz(motion.frequency_hz);
-  m.motion_offset_mm(motion.offset_mm);
-  m.motion_drift_mm_s(motion.drift_mm_s);
-  m.motion_cos_mm() = motion.cos_mm;  // assignment keeps the message's capacity
-  m.motion_sin_mm() = motion.sin_mm;
-  m.motion_valid_until_s(motion.valid_until_s);
-  m.confidence(s.confidence);
+  TargetFields(m, s, ToWire{});
 }
 
 void FromMessage(const echoservo_msgs::msg::TargetEstimate& m, TargetEstimateSample& s) {
-  estimation::FourierMotion& motion = s.motion;
-  s.sequence_number = m.sequence_number();
-  s.acquisition_time_s = m.acquisition_time_s();
-  s.publication_time_s = m.publication_time_s();
-  s.target_mm = FromArray(m.target_mm());
-  s.axis = FromArray(m.axis());
-  s.tip_mm = FromArray(m.tip_mm());
-  motion.t0_s = m.motion_t0_s();
-  motion.phase0_rad = m.motion_phase0_rad();
-  motion.frequency_hz = m.motion_frequency_hz();
-  motion.offset_mm = m.motion_offset_mm();
-  motion.drift_mm_s = m.motion_drift_mm_s();
-  motion.cos_mm = m.motion_cos_mm();
-  motion.sin_mm = m.motion_sin_mm();
-  motion.valid_until_s = m.motion_valid_until_s();
-  s.confidence = m.confidence();
+  TargetFields(m, s, FromWire{});
 }
 
-void ToMessage(const CatheterStateSample& s, echoservo_msgs::msg::CatheterState& m) {
-  m.sequence_number(s.sequence_number);
-  m.stamp_s(s.stamp_s);
-  m.mode(static_cast<std::uint8_t>(s.mode));
-  m.faults(s.faults);
-  m.fault_count(s.fault_count);
-  m.base_mm(s.base_mm);
-  m.base_velocity_mm_s(s.base_velocity_mm_s);
-  m.tip_estimate_mm(s.tip_estimate_mm);
-  m.setpoint_mm(s.setpoint_mm);
-  m.force_n(s.force_n);
-  m.standoff_mm(s.standoff_mm);
-  m.estimate_age_s(s.estimate_age_s);
-}
+void ToMessage(const CatheterStateSample& s, echoservo_msgs::msg::CatheterState& m) { StateFields(m, s, ToWire{}); }
 
 void FromMessage(const echoservo_msgs::msg::CatheterState& m, CatheterStateSample& s) {
-  s.sequence_number = m.sequence_number();
-  s.stamp_s = m.stamp_s();
-  s.mode = static_cast<ServoMode>(m.mode());  // any uint8; validation checks the range
-  s.faults = m.faults();
-  s.fault_count = m.fault_count();
-  s.base_mm = m.base_mm();
-  s.base_velocity_mm_s = m.base_velocity_mm_s();
-  s.tip_estimate_mm = m.tip_estimate_mm();
-  s.setpoint_mm = m.setpoint_mm();
-  s.force_n = m.force_n();
-  s.standoff_mm = m.standoff_mm();
-  s.estimate_age_s = m.estimate_age_s();
+  StateFields(m, s, FromWire{});
 }
 
-void ToMessage(const ServoCommandSample& s, echoservo_msgs::msg::ServoCommand& m) {
-  m.sequence_number(s.sequence_number);
-  m.stamp_s(s.stamp_s);
-  m.action(static_cast<std::uint8_t>(s.action));
-  m.standoff_mm(s.standoff_mm);
-}
+void ToMessage(const ServoCommandSample& s, echoservo_msgs::msg::ServoCommand& m) { CommandFields(m, s, ToWire{}); }
 
 void FromMessage(const echoservo_msgs::msg::ServoCommand& m, ServoCommandSample& s) {
-  s.sequence_number = m.sequence_number();
-  s.stamp_s = m.stamp_s();
-  s.action = static_cast<ServoAction>(m.action());  // any uint8; validation checks the range
-  s.standoff_mm = m.standoff_mm();
+  CommandFields(m, s, FromWire{});
 }
 
 }  // namespace echoservo::link

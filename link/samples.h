@@ -41,6 +41,8 @@ struct TargetEstimateSample {
   // (finite on the link), at most kMaxHarmonics harmonics.
   estimation::FourierMotion motion;
   double confidence = 0.0;  // 0..1
+
+  bool operator==(const TargetEstimateSample&) const = default;
 };
 
 // Values of CatheterState_Constants::MODE_*.
@@ -81,6 +83,8 @@ struct CatheterStateSample {
   double force_n = 0.0;
   double standoff_mm = 0.0;
   double estimate_age_s = 0.0;  // now − acquisition of the estimate in use
+
+  bool operator==(const CatheterStateSample&) const = default;
 };
 
 // Values of ServoCommand_Constants::ACTION_*.
@@ -99,6 +103,8 @@ struct ServoCommandSample {
   double stamp_s = 0.0;  // when issued
   ServoAction action = ServoAction::kStop;
   double standoff_mm = 0.0;  // for kEnable and kSetStandoff
+
+  bool operator==(const ServoCommandSample&) const = default;
 };
 
 }  // namespace echoservo::link

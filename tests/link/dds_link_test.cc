@@ -22,7 +22,6 @@ namespace echoservo::link {
 namespace {
 
 using echoservo::testing::Eventually;
-using echoservo::testing::ExpectSame;
 using echoservo::testing::MakeCommand;
 using echoservo::testing::MakeState;
 using echoservo::testing::MakeTarget;
@@ -38,13 +37,18 @@ ParticipantOptions Loopback(const std::string& name) {
   return o;
 }
 
+// Both sides of the pair have matched (each side learns of the other on its own).
+template <class Sample>
+bool Matched(const Publisher<Sample>& pub, const Subscriber<Sample>& sub) {
+  return pub.WaitForSubscribers(1, kMatchTimeoutS) && sub.WaitForPublishers(1, kMatchTimeoutS);
+}
+
 // Publishes `make(k)` (k = 1, 2, ...) every 20 ms until the subscriber takes one
 // (best-effort samples sent before the reader knows the writer are lost); returns the
 // sample it took and the one published with that sequence number.
 template <class Sample, class Make>
 std::pair<Sample, Sample> RoundTrip(Publisher<Sample>& pub, Subscriber<Sample>& sub, Make make) {
-  EXPECT_TRUE(pub.WaitForSubscribers(1, kMatchTimeoutS));
-  EXPECT_TRUE(sub.WaitForPublishers(1, kMatchTimeoutS));
+  EXPECT_TRUE(Matched(pub, sub));
   std::vector<Sample> sent;
   Sample got;
   for (std::uint64_t k = 1; k <= 500; ++k) {
@@ -71,14 +75,14 @@ TEST_F(DdsLinkTest, TargetRoundTrip) {
   TargetPublisher pub(tracker_);
   TargetSubscriber sub(servo_);
   const auto [got, sent] = RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeTarget(seq, NowS()); });
-  ExpectSame(got, sent);
+  EXPECT_EQ(got, sent);
 }
 
 TEST_F(DdsLinkTest, StateRoundTrip) {
   StatePublisher pub(servo_);
   StateSubscriber sub(tracker_);
   const auto [got, sent] = RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeState(seq, NowS()); });
-  ExpectSame(got, sent);
+  EXPECT_EQ(got, sent);
 }
 
 TEST_F(DdsLinkTest, CommandRoundTrip) {
@@ -86,7 +90,7 @@ TEST_F(DdsLinkTest, CommandRoundTrip) {
   CommandSubscriber sub(servo_);
   const auto [got, sent] = RoundTrip(
       pub, sub, [](std::uint64_t seq) { return MakeCommand(seq, NowS(), ServoAction::kSetStandoff); });
-  ExpectSame(got, sent);
+  EXPECT_EQ(got, sent);
 }
 
 TEST_F(DdsLinkTest, TopicAndTypeNamesFollowRos2) {
@@ -140,8 +144,7 @@ TEST_F(DdsLinkTest, ReliableCommandsAllDeliveredInOrder) {
     std::lock_guard lock(mu);
     got.push_back(s);
   });
-  ASSERT_TRUE(pub.WaitForSubscribers(1, kMatchTimeoutS));
-  ASSERT_TRUE(sub.WaitForPublishers(1, kMatchTimeoutS));
+  ASSERT_TRUE(Matched(pub, sub));
   const std::vector<ServoAction> burst = {ServoAction::kEnable, ServoAction::kSetStandoff, ServoAction::kSetStandoff,
                                           ServoAction::kDisable, ServoAction::kStop};
   ASSERT_LE(burst.size(), static_cast<std::size_t>(pub.qos().depth));
@@ -155,8 +158,7 @@ TEST_F(DdsLinkTest, ReliableCommandsAllDeliveredInOrder) {
     return got.size() >= sent.size();
   }));
   std::lock_guard lock(mu);
-  ASSERT_EQ(got.size(), sent.size());
-  for (std::size_t i = 0; i < sent.size(); ++i) ExpectSame(got[i], sent[i]);
+  EXPECT_EQ(got, sent);
   EXPECT_EQ(sub.stats().sequence_gaps, 0u);
 }
 
@@ -168,7 +170,7 @@ TEST_F(DdsLinkTest, TransientLocalStateReachesLateSubscriber) {
   StateSubscriber late(tracker_);  // created after both were published
   CatheterStateSample got;
   ASSERT_TRUE(late.WaitTakeLatest(got, kMatchTimeoutS));
-  ExpectSame(got, last);  // keep-last 1: the newest state only
+  EXPECT_EQ(got, last);  // keep-last 1: the newest state only
   EXPECT_EQ(late.stats().validation.accepted, 1u);
 }
 
@@ -176,8 +178,7 @@ TEST_F(DdsLinkTest, BestEffortTargetSubscriberKeepsOnlyTheLatest) {
   TargetPublisher pub(tracker_);
   std::atomic<std::uint64_t> newest{0};
   TargetSubscriber sub(servo_, {}, [&](const TargetEstimateSample& s, double) { newest = s.sequence_number; });
-  ASSERT_TRUE(pub.WaitForSubscribers(1, kMatchTimeoutS));
-  ASSERT_TRUE(sub.WaitForPublishers(1, kMatchTimeoutS));
+  ASSERT_TRUE(Matched(pub, sub));
   // A burst nobody takes, then (in case the last one was lost) one more every 0.2 s
   // until the newest arrives.
   constexpr std::uint64_t kBurst = 10;
@@ -202,8 +203,7 @@ TEST_F(DdsLinkTest, BestEffortTargetSubscriberKeepsOnlyTheLatest) {
 TEST_F(DdsLinkTest, BadTargetsRejectedCountedAndSubscriberKeepsServing) {
   TargetPublisher pub(tracker_);
   TargetSubscriber sub(servo_);
-  ASSERT_TRUE(pub.WaitForSubscribers(1, kMatchTimeoutS));
-  ASSERT_TRUE(sub.WaitForPublishers(1, kMatchTimeoutS));
+  ASSERT_TRUE(Matched(pub, sub));
   const ValidationLimits limits;
   const auto bad = [&](std::uint64_t seq, Rejection reason) {
     TargetEstimateSample s = MakeTarget(seq, NowS());
@@ -259,8 +259,7 @@ TEST_F(DdsLinkTest, BadCommandsRejectedAndCountedExactly) {
   // Reliable: every bad command arrives once and is counted once, by reason.
   CommandPublisher pub(tracker_);
   CommandSubscriber sub(servo_);
-  ASSERT_TRUE(pub.WaitForSubscribers(1, kMatchTimeoutS));
-  ASSERT_TRUE(sub.WaitForPublishers(1, kMatchTimeoutS));
+  ASSERT_TRUE(Matched(pub, sub));
   const ValidationLimits limits;
   ServoCommandSample nan_standoff = MakeCommand(1, NowS(), ServoAction::kEnable);
   nan_standoff.standoff_mm = std::numeric_limits<double>::quiet_NaN();
@@ -276,7 +275,7 @@ TEST_F(DdsLinkTest, BadCommandsRejectedAndCountedExactly) {
   ASSERT_TRUE(pub.Publish(stop));
   ServoCommandSample got;
   ASSERT_TRUE(sub.WaitTakeLatest(got, kMatchTimeoutS));
-  ExpectSame(got, stop);
+  EXPECT_EQ(got, stop);
   const SubscriberStats stats = sub.stats();
   EXPECT_EQ(stats.received, 6u);
   EXPECT_EQ(stats.validation.accepted, 1u);
@@ -319,7 +318,7 @@ TEST(DdsLinkDiscovery, LoopbackXmlProfile) {
   CommandSubscriber sub(b);
   const auto [got, sent] =
       RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeCommand(seq, NowS(), ServoAction::kDisable); });
-  ExpectSame(got, sent);
+  EXPECT_EQ(got, sent);
 }
 
 TEST(DdsLinkDiscovery, DefaultTransports) {
@@ -330,7 +329,7 @@ TEST(DdsLinkDiscovery, DefaultTransports) {
   StatePublisher pub(a);
   StateSubscriber sub(b);
   const auto [got, sent] = RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeState(seq, NowS()); });
-  ExpectSame(got, sent);
+  EXPECT_EQ(got, sent);
 }
 
 TEST(DdsLinkDiscovery, SecurityPropertiesPassThrough) {

@@ -1,5 +1,4 @@
-// Helpers for the DDS link tests: valid samples built around a time, field-by-field
-// comparisons, a domain id of this process's own (tests run in parallel with other
+// Helpers for the DDS link tests: valid samples built around a time, a domain id of this process's own (tests run in parallel with other
 // engineers' DDS tests on the same host) and polling with generous timeouts.
 #pragma once
 
@@ -63,46 +62,6 @@ inline link::ServoCommandSample MakeCommand(std::uint64_t seq, double t_s, link:
   s.action = action;
   s.standoff_mm = 2.0 + 0.1 * static_cast<double>(seq % 10);
   return s;
-}
-
-inline void ExpectSame(const link::TargetEstimateSample& a, const link::TargetEstimateSample& b) {
-  EXPECT_EQ(a.sequence_number, b.sequence_number);
-  EXPECT_EQ(a.acquisition_time_s, b.acquisition_time_s);
-  EXPECT_EQ(a.publication_time_s, b.publication_time_s);
-  EXPECT_EQ(a.target_mm, b.target_mm);
-  EXPECT_EQ(a.axis, b.axis);
-  EXPECT_EQ(a.tip_mm, b.tip_mm);
-  EXPECT_EQ(a.motion.t0_s, b.motion.t0_s);
-  EXPECT_EQ(a.motion.phase0_rad, b.motion.phase0_rad);
-  EXPECT_EQ(a.motion.frequency_hz, b.motion.frequency_hz);
-  EXPECT_EQ(a.motion.offset_mm, b.motion.offset_mm);
-  EXPECT_EQ(a.motion.drift_mm_s, b.motion.drift_mm_s);
-  EXPECT_EQ(a.motion.cos_mm, b.motion.cos_mm);
-  EXPECT_EQ(a.motion.sin_mm, b.motion.sin_mm);
-  EXPECT_EQ(a.motion.valid_until_s, b.motion.valid_until_s);
-  EXPECT_EQ(a.confidence, b.confidence);
-}
-
-inline void ExpectSame(const link::CatheterStateSample& a, const link::CatheterStateSample& b) {
-  EXPECT_EQ(a.sequence_number, b.sequence_number);
-  EXPECT_EQ(a.stamp_s, b.stamp_s);
-  EXPECT_EQ(a.mode, b.mode);
-  EXPECT_EQ(a.faults, b.faults);
-  EXPECT_EQ(a.fault_count, b.fault_count);
-  EXPECT_EQ(a.base_mm, b.base_mm);
-  EXPECT_EQ(a.base_velocity_mm_s, b.base_velocity_mm_s);
-  EXPECT_EQ(a.tip_estimate_mm, b.tip_estimate_mm);
-  EXPECT_EQ(a.setpoint_mm, b.setpoint_mm);
-  EXPECT_EQ(a.force_n, b.force_n);
-  EXPECT_EQ(a.standoff_mm, b.standoff_mm);
-  EXPECT_EQ(a.estimate_age_s, b.estimate_age_s);
-}
-
-inline void ExpectSame(const link::ServoCommandSample& a, const link::ServoCommandSample& b) {
-  EXPECT_EQ(a.sequence_number, b.sequence_number);
-  EXPECT_EQ(a.stamp_s, b.stamp_s);
-  EXPECT_EQ(a.action, b.action);
-  EXPECT_EQ(a.standoff_mm, b.standoff_mm);
 }
 
 // Polls `done` every 5 ms until it holds or `timeout_s` passes (no timing assertions:

@@ -23,7 +23,6 @@ namespace echoservo::link {
 namespace {
 
 using echoservo::testing::Eventually;
-using echoservo::testing::ExpectSame;
 using echoservo::testing::MakeCommand;
 using echoservo::testing::MakeTarget;
 using echoservo::testing::ProcessDomain;
@@ -87,7 +86,7 @@ TEST_P(TwoProcessTest, TargetsFromThePeerArrive) {
   TargetEstimateSample got;
   ASSERT_TRUE(sub.WaitTakeLatest(got, 30.0));
   // The peer built it with MakeTarget(seq, acquisition time): the same fields here.
-  ExpectSame(got, MakeTarget(got.sequence_number, got.acquisition_time_s));
+  EXPECT_EQ(got, MakeTarget(got.sequence_number, got.acquisition_time_s));
   EXPECT_EQ(peer.Wait(60.0), 0);
   EXPECT_GE(sub.stats().validation.accepted, 1u);
   EXPECT_EQ(sub.stats().validation.total_rejected(), 0u);
