@@ -160,6 +160,15 @@ bool PollUntil(Done done, double timeout_s) {
   return true;
 }
 
+// UDPv4 on the whitelisted interfaces (all when empty), announcing to the initial peers'
+// first kInitialPeersRange participant ports.
+std::shared_ptr<rtps::UDPv4TransportDescriptor> Udp(std::vector<std::string> whitelist) {
+  auto udp = std::make_shared<rtps::UDPv4TransportDescriptor>();
+  udp->interfaceWhiteList = std::move(whitelist);
+  udp->maxInitialPeersRange = kInitialPeersRange;
+  return udp;
+}
+
 bool ValidIpv4(const std::string& address) {
   in_addr parsed{};
   return inet_pton(AF_INET, address.c_str(), &parsed) == 1;
@@ -238,21 +247,15 @@ struct Participant::Impl {
     }
     qos.name(o.name);
     if (o.loopback_only) {
-      auto udp = std::make_shared<rtps::UDPv4TransportDescriptor>();
-      udp->interfaceWhiteList = {"127.0.0.1"};
-      udp->maxInitialPeersRange = kInitialPeersRange;
       qos.transport().use_builtin_transports = false;
-      qos.transport().user_transports = {udp};
+      qos.transport().user_transports = {Udp({"127.0.0.1"})};
       Locator_t peer;
       IPLocator::setIPv4(peer, 127, 0, 0, 1);
       qos.wire_protocol().builtin.initialPeersList.push_back(peer);
     }
-    if (!o.interfaces.empty() || !o.shared_memory) {
-      auto udp = std::make_shared<rtps::UDPv4TransportDescriptor>();
-      udp->interfaceWhiteList = o.interfaces;
-      udp->maxInitialPeersRange = kInitialPeersRange;
+    if (!o.interfaces.empty() || !o.initial_peers.empty() || !o.shared_memory) {
       qos.transport().use_builtin_transports = false;
-      qos.transport().user_transports = {udp};
+      qos.transport().user_transports = {Udp(o.interfaces)};
       if (o.shared_memory) {
         qos.transport().user_transports.push_back(std::make_shared<rtps::SharedMemTransportDescriptor>());
       }

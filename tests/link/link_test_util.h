@@ -1,8 +1,8 @@
-// Helpers for the DDS link tests: valid samples built around a time, a domain id of this process's own (tests run in parallel with other
-// engineers' DDS tests on the same host) and polling with generous timeouts.
+// Helpers for the DDS link tests (and link_test_peer): valid samples built around a time,
+// a domain id of this process's own (tests run in parallel with other engineers' DDS
+// tests on the same host) and polling with generous timeouts.
 #pragma once
 
-#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <chrono>
