@@ -31,6 +31,7 @@ struct FourierMotion {
   std::vector<double> sin_mm;  // b_1..b_N
   double valid_until_s = std::numeric_limits<double>::infinity();
 
+  bool operator==(const FourierMotion&) const = default;
   std::size_t harmonics() const { return cos_mm.size(); }
   // Throws std::invalid_argument for mismatched or non-finite coefficients, or a
   // non-positive frequency.

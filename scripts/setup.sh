@@ -13,6 +13,7 @@ packages=(
   libopenigtlink-dev
   libopencv-dev
   libtbb-dev
+  libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
   zlib1g-dev
   xvfb
   xauth
