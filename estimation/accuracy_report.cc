@@ -415,6 +415,7 @@ AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
   const double target_gap = kGapPeriods * target.MedianPeriodS();
   for (std::size_t i = 0; i < em_points.size(); ++i) {
     const double t = em_points.t_s[i] + m.alignment.em_time_offset_s;
+    if (t < o.from_s) continue;
     const auto goal = target.At(t, target_gap);
     if (!goal) continue;
     const Eigen::Vector3d tip = m.alignment.em_to_image * em_points.p_mm[i];

@@ -24,6 +24,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -39,6 +40,9 @@ struct AccuracyOptions {
   int phase_bins = 10;
   double min_rate_hz = 0.6;  // heart-rate search when run.json has none
   double max_rate_hz = 3.0;
+  // Figures from this pipeline time on (s; the alignment uses the whole run): a run's start
+  // (tracker initialising, servo catching up) is not what it is judged on.
+  double from_s = -std::numeric_limits<double>::infinity();
 };
 
 struct BeatError {

@@ -7,6 +7,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 
 #include "apps/output.h"
@@ -25,6 +26,7 @@ struct ReportFlags {
   std::string sensor;
   std::string out;
   std::string em_to_image;
+  std::optional<double> from_s;
   double max_offset_s = 2.0;
   double offset_center_s = std::numeric_limits<double>::quiet_NaN();
   int phase_bins = 10;
@@ -88,6 +90,7 @@ void RunReport(const ReportFlags& f) {
     }
   }
   ao.phase_bins = f.phase_bins;
+  if (f.from_s) ao.from_s = *f.from_s;
   const estimation::AccuracyMetrics m = estimation::ComputeAccuracy(run, em, ao);
 
   estimation::AccuracyReportOptions ro;
@@ -138,6 +141,8 @@ void AddReportCommand(CLI::App& app) {
                   "Half-width of the EM clock offset search, s (default 2)");
   cmd->add_option("--offset-center", f->offset_center_s,
                   "Centre of the offset search, s (default: first volume time − first EM time)");
+  cmd->add_option("--from", f->from_s, "Figures from this pipeline time on, s (the alignment uses the whole run)")
+      ->check(CLI::Range(-1e9, 1e9));
   cmd->add_option("--em-to-image", f->em_to_image,
                   "Known EM→image transform, 12 or 16 comma-separated numbers, row-major, mm: "
                   "only the clock offset is estimated");
