@@ -79,6 +79,8 @@ void AddLiveCommands(CLI::App& app) {
   demo->add_option("--standoff", o.standoff_mm, "tip-to-target standoff along the axis, mm")->check(CLI::Range(0.0, 30.0));
   demo->add_option("--metrics-start", o.metrics_start_s, "figures from this time on, s")->check(CLI::Range(0.0, 3600.0));
   demo->add_option("--seed", o.seed, "simulation seed");
+  demo->add_option("--dds-domain", o.dds_domain, "DDS domain of the tracker → servo link (loopback only)")
+      ->check(CLI::Range(0, 232));
   demo->add_option("--out", args->out, "write the run (RUN directory: targets, servo, latency, EM log, truth)");
   demo->add_flag("--json", args->json, "print the figures as JSON");
   demo->callback([args] { RunDemoCommand(*args); });

@@ -28,6 +28,8 @@
 #include "hw/simulated_catheter.h"
 #include "imaging/sim/catheter_scene.h"
 #include "imaging/sim/simulated_scanner.h"
+#include "link/clock.h"
+#include "link/dds_link.h"
 #include "tracking/radon_detector.h"
 
 namespace echoservo::live {
@@ -54,12 +56,22 @@ struct Delivery {
   double deliver_s;
 };
 
-// What the tracker hands the servo (the in-process link).
-struct Mailbox {
+// Arrival times of the published volumes by sequence number: the latency's start, which
+// the DDS sample does not carry (in-process bookkeeping of the demo only).
+struct Arrivals {
   std::mutex m;
-  std::uint64_t seq = 0;
-  control::TargetEstimateInput estimate;
-  double arrived_s = 0.0;
+  std::deque<std::pair<std::uint64_t, double>> seq_arrived;
+  void Add(std::uint64_t seq, double arrived_s) {
+    std::lock_guard lock(m);
+    seq_arrived.emplace_back(seq, arrived_s);
+    while (seq_arrived.size() > 256) seq_arrived.pop_front();
+  }
+  std::optional<double> Find(std::uint64_t seq) {
+    std::lock_guard lock(m);
+    for (const auto& [s, a] : seq_arrived)
+      if (s == seq) return a;
+    return std::nullopt;
+  }
 };
 
 class CsvFile {
@@ -109,6 +121,7 @@ void DemoOptions::Validate() const {
   if (!(target_p2p_mm > 0 && target_p2p_mm <= 20)) bad("--target-p2p", "must be in (0, 20] mm");
   if (!(standoff_mm >= 0 && standoff_mm <= 30)) bad("--standoff", "must be in [0, 30] mm");
   if (!(metrics_start_s >= 0 && metrics_start_s < duration_s)) bad("--metrics-start", "must be in [0, duration)");
+  if (!(dds_domain >= 0 && dds_domain <= 232)) bad("--dds-domain", "must be in [0, 232]");
 }
 
 DemoResult RunDemo(const DemoOptions& o) {
@@ -174,11 +187,24 @@ DemoResult RunDemo(const DemoOptions& o) {
   std::mutex queue_m;
   std::condition_variable queue_cv;
   std::deque<Delivery> queue;
-  Mailbox mailbox;
-  std::atomic<std::uint64_t> dropped{0}, detected{0}, volumes{0}, missed{0}, tracker_errors{0};
+  Arrivals arrivals;
+  std::atomic<std::uint64_t> dropped{0}, detected{0}, volumes{0}, missed{0}, tracker_errors{0}, publish_failures{0};
   const Clock::time_point start = Clock::now() + std::chrono::milliseconds(50);
   auto now_s = [&] { return std::chrono::duration<double>(Clock::now() - start).count(); };
   auto at = [&](double t_s) { return start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(t_s)); };
+  // The DDS link (link/dds_link.h): the tracker's and the servo's participants, loopback
+  // only. Samples carry the shared (system) clock: pipeline time + system_offset_s.
+  const double system_offset_s = link::NowS() - now_s();
+  link::ParticipantOptions po;
+  po.domain_id = o.dds_domain;
+  po.loopback_only = true;
+  po.name = "echoservo_demo_tracker";
+  link::Participant tracker_participant(po);
+  po.name = "echoservo_demo_servo";
+  link::Participant servo_participant(po);
+  link::TargetPublisher target_pub(tracker_participant);
+  link::TargetSubscriber target_sub(servo_participant);
+  target_pub.WaitForSubscribers(1, 5.0);
 
   // Scanner: acquire at k / rate, render on one TBB thread, queue for delivery after the delay.
   std::thread scanner_thread([&] {
@@ -216,7 +242,8 @@ DemoResult RunDemo(const DemoOptions& o) {
     ekf_options.init_window_s = 2.0;
     ekf_options.max_harmonics = 8;
     estimation::HeartbeatEkf ekf(ekf_options);
-    std::optional<tracking::Line3> reference;  // the axis coordinates' reference line
+    std::optional<tracking::Line3> reference;  // the axis coordinates' direction (origin: the image's)
+    std::uint64_t sequence = 0;
     while (true) {
       std::optional<Delivery> next;
       {
@@ -254,8 +281,8 @@ DemoResult RunDemo(const DemoOptions& o) {
       }
       ++detected;
       if (!reference) reference = det.axis;
-      const double s_target = (det.target_mm - reference->point).dot(reference->direction);
-      const double s_tip = (det.tip_mm - reference->point).dot(reference->direction);
+      // Axis coordinates s = p · axis (the link's convention: origin at the image origin).
+      const double s_target = det.target_mm.dot(reference->direction);
       try {
         ekf.Process(d.acquired_s, s_target);
       } catch (const std::exception& e) {  // a bad measurement never stops the tracker
@@ -265,10 +292,19 @@ DemoResult RunDemo(const DemoOptions& o) {
       }
       const double published = now_s();
       if (ekf.initialised()) {
-        std::lock_guard lock(mailbox.m);
-        mailbox.estimate = control::TargetEstimateInput{d.acquired_s, published, ekf.Motion(), s_tip, det.confidence};
-        mailbox.arrived_s = arrived;
-        ++mailbox.seq;
+        link::TargetEstimateSample sample;
+        sample.sequence_number = ++sequence;
+        sample.acquisition_time_s = d.acquired_s + system_offset_s;
+        sample.publication_time_s = published + system_offset_s;
+        sample.target_mm = det.target_mm;
+        sample.axis = reference->direction;
+        sample.tip_mm = det.tip_mm;
+        sample.motion = ekf.Motion();
+        sample.motion.t0_s += system_offset_s;
+        sample.motion.valid_until_s += system_offset_s;
+        sample.confidence = det.confidence;
+        arrivals.Add(sample.sequence_number, arrived);
+        if (!target_pub.Publish(sample)) ++publish_failures;
       }
       targets_csv.Row(Fmt("%.6f,%.6f,%.6f,1,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.6f,%.6f,%.6f,%.3f", d.acquired_s, arrived,
                           published, det.target_mm.x(), det.target_mm.y(), det.target_mm.z(), det.tip_mm.x(),
@@ -303,7 +339,7 @@ DemoResult RunDemo(const DemoOptions& o) {
     control::TargetFollower follower(fc);
     hw::SimEmTracker em(eo, 0.0);
     const std::size_t tip_index = plant.StateIndex(hw::iface::kTipPosition);
-    std::uint64_t seen = 0;
+    link::TargetEstimateSample sample;
     bool enabled = false;
     const double period = 1e-3;
     for (std::uint64_t k = 0;; ++k) {
@@ -312,11 +348,17 @@ DemoResult RunDemo(const DemoOptions& o) {
       std::this_thread::sleep_until(at(t));
       if (now_s() > t + period) ++result.servo_overruns;
       std::optional<double> pending_arrival;
-      {
-        std::lock_guard lock(mailbox.m);
-        if (mailbox.seq != seen) {
-          seen = mailbox.seq;
-          if (follower.Accept(mailbox.estimate, t)) {
+      if (target_sub.TryTakeLatest(sample)) {
+        {
+          control::TargetEstimateInput in;
+          in.acquired_s = sample.acquisition_time_s - system_offset_s;
+          in.published_s = sample.publication_time_s - system_offset_s;
+          in.target_motion = sample.motion;
+          in.target_motion.t0_s -= system_offset_s;
+          in.target_motion.valid_until_s -= system_offset_s;
+          in.tip_axis_mm = sample.tip_mm.dot(sample.axis);
+          in.confidence = sample.confidence;
+          if (follower.Accept(in, t)) {
             // The operator's enable: once tracking delivers, and again after a retraction
             // (the demo resumes by itself; a clinical system would wait for the operator).
             if (!enabled || follower.mode() == control::FollowerMode::kRetracting) {
@@ -324,7 +366,7 @@ DemoResult RunDemo(const DemoOptions& o) {
               follower.Enable(t);
               enabled = true;
             }
-            pending_arrival = mailbox.arrived_s;
+            pending_arrival = arrivals.Find(sample.sequence_number);
           }
         }
       }
@@ -369,7 +411,9 @@ DemoResult RunDemo(const DemoOptions& o) {
     result.em_dropouts = em.dropouts();
     const auto& c = follower.counters();
     result.estimates_accepted = c.accepted;
-    result.estimates_rejected = c.rejected_non_finite + c.rejected_range + c.rejected_time + c.rejected_confidence;
+    const link::SubscriberStats ls = target_sub.stats();
+    result.estimates_rejected = c.rejected_non_finite + c.rejected_range + c.rejected_time + c.rejected_confidence +
+                                ls.validation.total_rejected();
   }
   stop = true;
   queue_cv.notify_all();

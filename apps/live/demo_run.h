@@ -7,7 +7,7 @@
 // plant's tip is then and the annulus displaced by the target trajectory), delivered to the
 // tracker after the imaging delay (uniform in [delay_min_s, delay_max_s], in order), detected
 // (RadonDetector::Track), and its target's axis coordinate updates the EKF, whose predicted
-// motion is published; the servo (control/target_follower.h + control/servo_loop.h, adaptive
+// motion is published over DDS (link/dds_link.h, two participants on loopback); the servo (control/target_follower.h + control/servo_loop.h, adaptive
 // backlash compensation) evaluates the newest model every millisecond. Three threads:
 // scanner (rendering on one TBB thread), tracker, servo.
 //
@@ -37,6 +37,7 @@ struct DemoOptions {
   double metrics_start_s = 3.0;
   std::uint64_t seed = 1;
   std::filesystem::path out_dir;  // the RUN directory (docs/report.md); empty: not written
+  int dds_domain = 42;            // the DDS domain of the tracker → servo link (loopback only)
   std::function<void(const std::string&)> log;  // progress lines; may be null
   // Throws std::invalid_argument naming the option.
   void Validate() const;
