@@ -122,6 +122,8 @@ void DemoOptions::Validate() const {
   if (!(standoff_mm >= 0 && standoff_mm <= 30)) bad("--standoff", "must be in [0, 30] mm");
   if (!(metrics_start_s >= 0 && metrics_start_s < duration_s)) bad("--metrics-start", "must be in [0, duration)");
   if (!(dds_domain >= 0 && dds_domain <= 232)) bad("--dds-domain", "must be in [0, 232]");
+  if (!(guidewire_od_mm > 0 && sheath_id_mm > guidewire_od_mm && sheath_id_mm <= 5))
+    bad("--sheath-id/--guidewire-od", "must satisfy 0 < guidewire < sheath ≤ 5 mm");
 }
 
 DemoResult RunDemo(const DemoOptions& o) {
@@ -320,7 +322,11 @@ DemoResult RunDemo(const DemoOptions& o) {
   double em_sq = 0.0, true_sq = 0.0;
   std::uint64_t em_n = 0, true_n = 0;
   {
-    hw::PlantOptions plant_options = hw::SeedCalibratedPlant(hw::SeedTrackingCatheter(), o.seed);
+    // The seed's water-tank catheter: a 1.50 mm guidewire in a 1.59 mm sheath, its two bends.
+    hw::CatheterConfig catheter = hw::SeedTrackingCatheter();
+    catheter.sheath_id_mm = o.sheath_id_mm;
+    catheter.guidewire_od_mm = o.guidewire_od_mm;
+    hw::PlantOptions plant_options = hw::SeedCalibratedPlant(catheter, o.seed);
     hw::SimulatedCatheter plant(plant_options);
     plant.ResetTo(0.0);
     plant.Configure();

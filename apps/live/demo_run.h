@@ -37,6 +37,8 @@ struct DemoOptions {
   double metrics_start_s = 3.0;
   std::uint64_t seed = 1;
   std::filesystem::path out_dir;  // the RUN directory (docs/report.md); empty: not written
+  double sheath_id_mm = 1.59;     // the seed's water-tank catheter (its two bends)
+  double guidewire_od_mm = 1.50;
   int dds_domain = 42;            // the DDS domain of the tracker → servo link (loopback only)
   std::function<void(const std::string&)> log;  // progress lines; may be null
   // Throws std::invalid_argument naming the option.
