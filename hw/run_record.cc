@@ -233,9 +233,14 @@ RunWriter::RunWriter(const fs::path& dir, const RunInfo& info) : dir_(dir) {
     }
     j["heart_rate_hz"] = *info.heart_rate_hz;
   }
+  if (info.standoff_mm) {
+    if (!(*info.standoff_mm >= 0.0 && *info.standoff_mm <= 50.0))
+      throw std::invalid_argument("RunInfo::standoff_mm must be in [0, 50] mm");
+    j["standoff_mm"] = *info.standoff_mm;
+  }
   if (!info.notes.empty()) j["notes"] = info.notes;
   for (const auto& [key, value] : meta.items()) {
-    if (j.contains(key) || key == "heart_rate_hz" || key == "notes") {
+    if (j.contains(key) || key == "heart_rate_hz" || key == "notes" || key == "standoff_mm") {
       throw std::invalid_argument("RunInfo::metadata_json: key '" + key + "' is reserved");
     }
     j[key] = value;

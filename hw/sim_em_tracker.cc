@@ -1,7 +1,6 @@
 #include "hw/sim_em_tracker.h"
 
 #include <cmath>
-#include <cstdio>
 #include <stdexcept>
 
 namespace echoservo::hw {
@@ -26,9 +25,9 @@ SimEmTracker::SimEmTracker(SimEmTrackerOptions options, double start_s)
   o_.Validate();
 }
 
-EmSampleRecord SimEmTracker::Sample(const Eigen::Vector3d& tip_image_mm) {
-  EmSampleRecord r;
-  r.t_em_s = next_s_ + o_.clock_offset_s;
+EmSample SimEmTracker::Sample(const Eigen::Vector3d& tip_image_mm) {
+  EmSample r;
+  r.t_s = next_s_ + o_.clock_offset_s;
   ++samples_;
   std::uniform_real_distribution<double> u(0.0, 1.0);
   if (u(rng_) < o_.dropout_probability) {
@@ -44,13 +43,5 @@ EmSampleRecord SimEmTracker::Sample(const Eigen::Vector3d& tip_image_mm) {
   return r;
 }
 
-std::string EmLogHeader() { return "t_s,x_mm,y_mm,z_mm,status"; }
-
-std::string EmLogRow(const EmSampleRecord& r) {
-  char buf[160];
-  std::snprintf(buf, sizeof buf, "%.6f,%.4f,%.4f,%.4f,%s", r.t_em_s, r.position_mm.x(), r.position_mm.y(),
-                r.position_mm.z(), r.valid ? "OK" : "MISSING");
-  return buf;
-}
 
 }  // namespace echoservo::hw

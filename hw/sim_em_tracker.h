@@ -12,7 +12,8 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <random>
-#include <string>
+
+#include "hw/em_log.h"
 
 namespace echoservo::hw {
 
@@ -28,12 +29,6 @@ struct SimEmTrackerOptions {
   void Validate() const;
 };
 
-struct EmSampleRecord {
-  double t_em_s = 0.0;                 // on the EM tracker's clock
-  Eigen::Vector3d position_mm = Eigen::Vector3d::Zero();  // EM frame; zero when missing
-  bool valid = false;                  // false: drop-out
-};
-
 class SimEmTracker {
  public:
   // Throws std::invalid_argument for bad options.
@@ -41,8 +36,9 @@ class SimEmTracker {
   // Pipeline time of the next sample.
   double next_sample_s() const { return next_s_; }
   // Takes the sample due at next_sample_s() of the true tip `tip_image_mm` (image frame,
-  // at that time) and schedules the next one.
-  EmSampleRecord Sample(const Eigen::Vector3d& tip_image_mm);
+  // at that time) and schedules the next one: t_s on the EM clock, position in the EM
+  // frame (zero for a drop-out). Its log rows: hw/em_log.h SimEmLogRow.
+  EmSample Sample(const Eigen::Vector3d& tip_image_mm);
   std::uint64_t samples() const { return samples_; }
   std::uint64_t dropouts() const { return dropouts_; }
   const SimEmTrackerOptions& options() const { return o_; }
@@ -56,9 +52,5 @@ class SimEmTracker {
   std::uint64_t samples_ = 0, dropouts_ = 0;
 };
 
-// The simulated tracker's log format (RUN/em.csv): header `t_s,x_mm,y_mm,z_mm,status`,
-// status OK or MISSING.
-std::string EmLogHeader();
-std::string EmLogRow(const EmSampleRecord& r);
 
 }  // namespace echoservo::hw

@@ -9,7 +9,6 @@
 #include <condition_variable>
 #include <cstdio>
 #include <deque>
-#include <fstream>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -22,7 +21,9 @@
 #include "control/target_follower.h"
 #include "control/track_experiment.h"
 #include "control/trajectory.h"
+#include "estimation/accuracy_report.h"
 #include "estimation/heartbeat_ekf.h"
+#include "hw/run_record.h"
 #include "hw/seed_plant.h"
 #include "hw/sim_em_tracker.h"
 #include "hw/simulated_catheter.h"
@@ -41,13 +42,6 @@ using Clock = std::chrono::steady_clock;
 // 10.5 mm short of the annulus's near face (5.5–15.5 mm as it moves ±5 mm), and following
 // it at a 5 mm standoff keeps the plant's tip within 0–11 mm of travel.
 constexpr double kAdvanceAtZeroMm = 3.0;
-
-double Percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const std::size_t i = std::min(v.size() - 1, static_cast<std::size_t>(std::ceil(p * v.size())) - (p > 0 ? 1 : 0));
-  return v[i];
-}
 
 // A delivered volume, waiting for the tracker.
 struct Delivery {
@@ -72,23 +66,6 @@ struct Arrivals {
       if (s == seq) return a;
     return std::nullopt;
   }
-};
-
-class CsvFile {
- public:
-  CsvFile() = default;
-  CsvFile(const std::filesystem::path& dir, const char* name, const std::string& header) {
-    if (dir.empty()) return;
-    out_.open(dir / name);
-    if (!out_) throw std::runtime_error("demo: cannot write " + (dir / name).string());
-    out_ << header << '\n';
-  }
-  void Row(const std::string& line) {
-    if (out_.is_open()) out_ << line << '\n';
-  }
-
- private:
-  std::ofstream out_;
 };
 
 std::string Fmt(const char* f, auto... args) {
@@ -128,7 +105,6 @@ void DemoOptions::Validate() const {
 
 DemoResult RunDemo(const DemoOptions& o) {
   o.Validate();
-  if (!o.out_dir.empty()) std::filesystem::create_directories(o.out_dir);
   auto log = [&](const std::string& s) {
     if (o.log) o.log(s);
   };
@@ -176,13 +152,16 @@ DemoResult RunDemo(const DemoOptions& o) {
   eo.seed = o.seed + 11;
   const Eigen::Isometry3d em_to_image = eo.image_to_em.inverse();
 
-  CsvFile targets_csv(o.out_dir, "targets.csv",
-                      "acquired_s,arrived_s,published_s,found,target_x_mm,target_y_mm,target_z_mm,tip_x_mm,tip_y_mm,"
-                      "tip_z_mm,axis_x,axis_y,axis_z,confidence");
-  CsvFile servo_csv(o.out_dir, "servo.csv", "t_s,mode,setpoint_mm,base_mm,tip_estimate_mm,faults");
-  CsvFile latency_csv(o.out_dir, "latency.csv", "arrived_s,applied_s");
-  CsvFile em_csv(o.out_dir, "em.csv", hw::EmLogHeader());
-  CsvFile truth_csv(o.out_dir, "truth.csv", "t_s,target_x_mm,target_y_mm,target_z_mm,tip_x_mm,tip_y_mm,tip_z_mm");
+  // The RUN directory (hw/run_record.h): run.json now, the streams as they come.
+  std::unique_ptr<hw::RunWriter> writer;
+  if (!o.out_dir.empty()) {
+    hw::RunInfo info;
+    info.heart_rate_hz = o.heart_rate_bpm / 60.0;
+    info.standoff_mm = o.standoff_mm;
+    info.metadata_json = Fmt("{\"source\": \"echoservo demo\", \"seed\": %llu, \"duration_s\": %.3f, \"em_to_image\": \"%s\"}",
+                             static_cast<unsigned long long>(o.seed), o.duration_s, RowMajor(em_to_image).c_str());
+    writer = std::make_unique<hw::RunWriter>(o.out_dir, info);
+  }
 
   DemoResult result;
   std::atomic<bool> stop{false};
@@ -278,7 +257,7 @@ DemoResult RunDemo(const DemoOptions& o) {
       const bool ok = det.found && det.target_found;
       if (!ok) {
         ++dropped;
-        targets_csv.Row(Fmt("%.6f,%.6f,%.6f,0,0,0,0,0,0,0,0,0,0,%.3f", d.acquired_s, arrived, now_s(), det.confidence));
+        if (writer) writer->AddTarget({d.acquired_s, arrived, now_s(), false, {}, {}, {}, det.confidence});
         continue;
       }
       ++detected;
@@ -308,10 +287,9 @@ DemoResult RunDemo(const DemoOptions& o) {
         arrivals.Add(sample.sequence_number, arrived);
         if (!target_pub.Publish(sample)) ++publish_failures;
       }
-      targets_csv.Row(Fmt("%.6f,%.6f,%.6f,1,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.6f,%.6f,%.6f,%.3f", d.acquired_s, arrived,
-                          published, det.target_mm.x(), det.target_mm.y(), det.target_mm.z(), det.tip_mm.x(),
-                          det.tip_mm.y(), det.tip_mm.z(), det.axis.direction.x(), det.axis.direction.y(),
-                          det.axis.direction.z(), det.confidence));
+      if (writer)
+        writer->AddTarget({d.acquired_s, arrived, published, true, det.target_mm, det.tip_mm, det.axis.direction,
+                           det.confidence});
     }
     result.ekf_harmonics = ekf.harmonics();
     result.ekf_rate_hz = ekf.rate_hz();
@@ -333,12 +311,10 @@ DemoResult RunDemo(const DemoOptions& o) {
     plant.Activate();
     control::ServoLoop loop(plant, control::SeedServoConfig(plant_options, true));
     loop.Start(0.0);
-    control::AdaptiveOptions ao;
-    ao.initial_width_mm = plant_options.config.TotalBendRad() * plant_options.config.GapMm();
-    ao.max_acceleration_mm_s2 = loop.config().limits.max_acceleration_mm_s2;
     // The static inverse: the adaptive one learned poorly from a reference that changes with
     // every volume (servo tracking 1.2 mm RMS against 0.19 mm with the static inverse).
-    control::StaticInverse compensator(ao.initial_width_mm, ao.max_acceleration_mm_s2);
+    control::StaticInverse compensator(plant_options.config.TotalBendRad() * plant_options.config.GapMm(),
+                                       loop.config().limits.max_acceleration_mm_s2);
     control::FollowerConfig fc;
     fc.standoff_mm = o.standoff_mm;
     fc.offset_gain = 0.05;
@@ -382,7 +358,7 @@ DemoResult RunDemo(const DemoOptions& o) {
       if (pending_arrival) {
         const double applied = now_s();
         latency_ms.push_back(1e3 * (applied - *pending_arrival));
-        latency_csv.Row(Fmt("%.6f,%.6f", *pending_arrival, applied));
+        if (writer) writer->AddLatency({*pending_arrival, applied});
       }
       const double tip_true = plant.truth().tip_mm;
       plant_tip_mm.store(tip_true);
@@ -393,20 +369,18 @@ DemoResult RunDemo(const DemoOptions& o) {
       }
       while (em.next_sample_s() <= t) {
         const double t_sample = em.next_sample_s();
-        const hw::EmSampleRecord r = em.Sample(tip_img);
-        em_csv.Row(hw::EmLogRow(r));
+        const hw::EmSample r = em.Sample(tip_img);
+        if (writer) writer->AddEm(r);
         if (r.valid && t_sample >= o.metrics_start_s) {
-          const double t_pipeline = r.t_em_s - eo.clock_offset_s;
+          const double t_pipeline = r.t_s - eo.clock_offset_s;
           em_sq += (em_to_image * r.position_mm - desired_tip(t_pipeline)).squaredNorm();
           ++em_n;
         }
       }
-      if (k % 10 == 0) {
-        servo_csv.Row(Fmt("%.3f,%s,%.4f,%.4f,%.4f,%u", t, control::ToString(follower.mode()).c_str(), rec.reference_mm,
-                          rec.base_mm, rec.tip_mm, follower.faults()));
-        const Eigen::Vector3d tg = target_image(t);
-        truth_csv.Row(Fmt("%.3f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f", t, tg.x(), tg.y(), tg.z(), tip_img.x(), tip_img.y(),
-                          tip_img.z()));
+      if (k % 10 == 0 && writer) {
+        writer->AddServo({t, control::ToString(follower.mode()), rec.reference_mm, rec.base_mm, rec.tip_mm,
+                          static_cast<double>(follower.faults())});
+        writer->AddTruth({t, target_image(t), tip_img});
       }
       if (k % 1000 == 0 && k > 0)
         log(Fmt("t %.0f s: mode %s, volumes %llu, detected %llu", t, control::ToString(follower.mode()).c_str(),
@@ -434,17 +408,12 @@ DemoResult RunDemo(const DemoOptions& o) {
   result.tip_to_target_rms_mm = em_n ? std::sqrt(em_sq / static_cast<double>(em_n)) : 0.0;
   result.true_tip_to_target_rms_mm = true_n ? std::sqrt(true_sq / static_cast<double>(true_n)) : 0.0;
   result.latency.count = latency_ms.size();
-  result.latency.p50_ms = Percentile(latency_ms, 0.5);
-  result.latency.p99_ms = Percentile(latency_ms, 0.99);
-  result.latency.max_ms = Percentile(latency_ms, 1.0);
-  if (!o.out_dir.empty()) {
-    std::ofstream run(o.out_dir / "run.json");
-    run << Fmt(
-        "{\"format\": \"echoservo-run\", \"version\": 1, \"heart_rate_hz\": %.6f, \"standoff_mm\": %.3f, "
-        "\"source\": \"echoservo demo\", \"seed\": %llu, \"duration_s\": %.3f, \"em_to_image\": \"%s\"}\n",
-        o.heart_rate_bpm / 60.0, o.standoff_mm, static_cast<unsigned long long>(o.seed), o.duration_s,
-        RowMajor(em_to_image).c_str());
+  if (!latency_ms.empty()) {
+    result.latency.p50_ms = estimation::Percentile(latency_ms, 0.5);
+    result.latency.p99_ms = estimation::Percentile(latency_ms, 0.99);
+    result.latency.max_ms = estimation::Percentile(latency_ms, 1.0);
   }
+  if (writer) writer->Flush();
   return result;
 }
 

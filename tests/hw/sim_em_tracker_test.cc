@@ -24,8 +24,8 @@ TEST(SimEmTracker, SamplesAtItsRateOnItsClockInItsFrameWithTheSetNoiseAndDropout
   int valid = 0;
   for (int k = 0; k < n; ++k) {
     EXPECT_NEAR(em.next_sample_s(), 2.0 + k / 40.0, 1e-9);
-    const EmSampleRecord r = em.Sample(tip);
-    EXPECT_NEAR(r.t_em_s, 2.5 + k / 40.0, 1e-9);
+    const EmSample r = em.Sample(tip);
+    EXPECT_NEAR(r.t_s, 2.5 + k / 40.0, 1e-9);
     if (!r.valid) continue;
     ++valid;
     sq += (r.position_mm - o.image_to_em * tip).squaredNorm();
@@ -38,15 +38,7 @@ TEST(SimEmTracker, SamplesAtItsRateOnItsClockInItsFrameWithTheSetNoiseAndDropout
   EXPECT_NEAR(std::sqrt(sq / valid), 0.3, 0.3 * 0.02);
 }
 
-TEST(SimEmTracker, LogRowsAndBadOptions) {
-  EmSampleRecord r;
-  r.t_em_s = 1.25;
-  r.position_mm = {1, 2, 3};
-  r.valid = true;
-  EXPECT_EQ(EmLogRow(r), "1.250000,1.0000,2.0000,3.0000,OK");
-  r.valid = false;
-  EXPECT_NE(EmLogRow(r).find("MISSING"), std::string::npos);
-  EXPECT_EQ(EmLogHeader(), "t_s,x_mm,y_mm,z_mm,status");
+TEST(SimEmTracker, BadOptions) {
   SimEmTrackerOptions o;
   o.rate_hz = 0;
   EXPECT_THROW(SimEmTracker{o}, std::invalid_argument);
