@@ -333,12 +333,9 @@ TargetEstimate FindTarget(const imaging::Volume& v, const TipEstimate& tip, doub
       std::vector<double> near;
       for (int i = start; i < std::min(M, start + static_cast<int>(4.0 / ds)); ++i) near.push_back(at(i));
       if (!near.empty()) {
-        const auto mid = near.begin() + static_cast<long>(near.size() / 2);
-        std::nth_element(near.begin(), mid, near.end());
-        fbg = *mid;
-        for (double& x : near) x = std::abs(x - fbg);
-        std::nth_element(near.begin(), mid, near.end());
-        spread = 1.4826 * *mid;
+        const MedianMad m = ComputeMedianMad(near);
+        fbg = m.median;
+        spread = 1.4826 * m.mad;
       }
     }
     const double rise = std::max({12.0, 0.1 * (level - bg), 5.0 * spread});

@@ -22,12 +22,9 @@ namespace {
 // Median and MAD of line scores into scene.score_median / score_mad; false when empty.
 bool SetScoreStats(std::vector<double> sc, SceneBaseline& scene) {
   if (sc.empty()) return false;
-  auto mid = sc.begin() + static_cast<long>(sc.size() / 2);
-  std::nth_element(sc.begin(), mid, sc.end());
-  scene.score_median = *mid;
-  for (auto& x : sc) x = std::abs(x - scene.score_median);
-  std::nth_element(sc.begin(), mid, sc.end());
-  scene.score_mad = *mid;
+  const MedianMad m = ComputeMedianMad(sc);
+  scene.score_median = m.median;
+  scene.score_mad = m.mad;
   return true;
 }
 
@@ -192,14 +189,17 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
   CatheterDetection best = out;
   std::vector<Eigen::Vector3d> tried;
   const double cos_sep = std::cos(options_.candidate_separation_rad);
-  std::vector<std::size_t> order(b.scores.size());
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return b.scores[x] > b.scores[y]; });
+  std::vector<std::size_t> order;  // the runners-up by score, sorted when first needed
   std::size_t next = 0;
   for (int c = 0; c < (previous ? 1 : options_.max_candidates); ++c) {
     Eigen::Vector3d dir = b.direction;
     RadonPeak peak = b.peak;
     if (c > 0) {
+      if (order.empty()) {
+        order.resize(b.scores.size());
+        std::iota(order.begin(), order.end(), std::size_t{0});
+        std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return b.scores[x] > b.scores[y]; });
+      }
       while (next < order.size() && b.scores[order[next]] >= 0.5 * b.peak.score &&
              std::any_of(tried.begin(), tried.end(), [&](const Eigen::Vector3d& t) {
                return std::abs(t.dot(b.directions[order[next]])) >= cos_sep;

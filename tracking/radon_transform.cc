@@ -610,16 +610,23 @@ CellColumns WindowCells(const RadonLevel& L, std::span<const Eigen::Vector3d> di
 
 // Robust z-score (median / MAD) of `top` among `all`.
 double RobustZ(std::vector<double>& all, double top) {
-  auto mid = all.begin() + static_cast<long>(all.size() / 2);
-  std::nth_element(all.begin(), mid, all.end());
-  const double med = *mid;
-  for (auto& x : all) x = std::abs(x - med);
-  std::nth_element(all.begin(), mid, all.end());
-  const double mad = 1.4826 * (*mid) + 1e-9 * top + 1e-12;
-  return (top - med) / mad;
+  const MedianMad m = ComputeMedianMad(all);
+  return (top - m.median) / (1.4826 * m.mad + 1e-9 * top + 1e-12);
 }
 
 }  // namespace
+
+MedianMad ComputeMedianMad(std::vector<double>& values) {
+  if (values.empty()) return {};
+  const auto mid = values.begin() + static_cast<long>(values.size() / 2);
+  std::nth_element(values.begin(), mid, values.end());
+  MedianMad m;
+  m.median = *mid;
+  for (auto& x : values) x = std::abs(x - m.median);
+  std::nth_element(values.begin(), mid, values.end());
+  m.mad = *mid;
+  return m;
+}
 
 double MedianNonZeroVoxel(const imaging::Volume& v) {
   const auto vox = v.voxels();

@@ -126,6 +126,13 @@ std::vector<Eigen::Vector3d> FibonacciHemisphere(int n);
 // steps² directions on a square grid of tangent-plane angles within ±half_rad around d.
 std::vector<Eigen::Vector3d> DirectionCone(const Eigen::Vector3d& d, double half_rad, int steps);
 
+// Median and median absolute deviation (unscaled) of `values`, which are reordered; zeros
+// when empty. The robust z-scores of line scores use it.
+struct MedianMad {
+  double median = 0.0, mad = 0.0;
+};
+MedianMad ComputeMedianMad(std::vector<double>& values);
+
 struct RadonSearchResult {
   Eigen::Vector3d direction = Eigen::Vector3d::UnitZ();
   RadonPeak peak;
