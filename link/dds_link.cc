@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <chrono>
 #include <condition_variable>
+#include <fastrtps/attributes/LibrarySettingsAttributes.h>
+#include <fastrtps/xmlparser/XMLProfileManager.h>
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
@@ -225,6 +227,20 @@ void ParticipantOptions::Validate() const {
   }
 }
 
+// Intra-process delivery off, once, before the first participant: with it on, two
+// participants of one process (the demo's tracker and servo) deliver each other's
+// automatic liveliness messages from their event threads, each holding its own WLP lock
+// while taking the other's — Fast DDS 2.9 deadlocks (seen as a DataWriter deletion that
+// never returns). Samples then go through the same transports as between processes.
+static void DisableIntraprocessDelivery() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    eprosima::fastrtps::LibrarySettingsAttributes settings;
+    settings.intraprocess_delivery = eprosima::fastrtps::INTRAPROCESS_OFF;
+    eprosima::fastrtps::xmlparser::XMLProfileManager::library_settings(settings);
+  });
+}
+
 struct Participant::Impl {
   dds::DomainParticipant* participant = nullptr;
   dds::Publisher* publisher = nullptr;
@@ -234,6 +250,7 @@ struct Participant::Impl {
   std::map<std::string, dds::Topic*, std::less<>> topics;
 
   explicit Impl(const ParticipantOptions& o) {
+    DisableIntraprocessDelivery();
     auto* factory = dds::DomainParticipantFactory::get_instance();
     dds::DomainParticipantQos qos = factory->get_default_participant_qos();
     if (!o.profiles_file.empty()) {

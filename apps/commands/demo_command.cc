@@ -45,6 +45,7 @@ void RunDemoCommand(const DemoArgs& a) {
         {"servo_cycles", r.servo_cycles},
         {"servo_overruns", r.servo_overruns},
         {"limit_faults", r.limit_faults},
+        {"limit_violations", r.limit_violations},
         {"resumes", r.resumes},
         {"ekf_harmonics", r.ekf_harmonics},
         {"ekf_rate_hz", r.ekf_rate_hz},
@@ -84,8 +85,13 @@ void AddLiveCommands(CLI::App& app) {
   demo->add_option("--dds-domain", o.dds_domain, "DDS domain of the tracker → servo link (loopback only)")
       ->check(CLI::Range(0, 232));
   demo->add_option("--out", args->out, "write the run (RUN directory: targets, servo, latency, EM log, truth)");
+  demo->add_flag("--save-volumes", o.save_volumes,
+                 "also write the processed volumes to RUN/volumes.igs.mha for `track --replay` (≤ 20 s runs)");
   demo->add_flag("--json", args->json, "print the figures as JSON");
   demo->callback([args] { RunDemoCommand(*args); });
+  AddTrackCommand(app);
+  AddServoCommand(app);
+  AddOperatorCommand(app);
 }
 
 }  // namespace echoservo::apps

@@ -1,5 +1,7 @@
-// Registration of the live-pipeline commands: `demo` (apps/commands/demo_command.cc), the
-// closed-loop simulated scanner → tracker → servo run (apps/live/demo_run.h).
+// Registration of the live-pipeline commands: `demo` (apps/commands/demo_command.cc, the
+// closed-loop simulated scanner → tracker → servo run, apps/live/demo_run.h), and the
+// separate processes `track` (track_command.cc), `servo` (servo_command.cc) and
+// `command` (servo_command_tool.cc, operator commands over DDS).
 #pragma once
 
 namespace CLI {
@@ -8,6 +10,9 @@ class App;
 
 namespace echoservo::apps {
 
-void AddLiveCommands(CLI::App& app);
+void AddLiveCommands(CLI::App& app);  // all four
+void AddTrackCommand(CLI::App& app);
+void AddServoCommand(CLI::App& app);
+void AddOperatorCommand(CLI::App& app);
 
 }  // namespace echoservo::apps

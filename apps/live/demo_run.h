@@ -7,9 +7,11 @@
 // plant's tip is then and the annulus displaced by the target trajectory), delivered to the
 // tracker after the imaging delay (uniform in [delay_min_s, delay_max_s], in order), detected
 // (RadonDetector::Track), and its target's axis coordinate updates the EKF, whose predicted
-// motion is published over DDS (link/dds_link.h, two participants on loopback); the servo (control/target_follower.h + control/servo_loop.h, adaptive
-// backlash compensation) evaluates the newest model every millisecond. Three threads:
-// scanner (rendering on one TBB thread), tracker, servo.
+// motion is published over DDS (link/dds_link.h, two participants on loopback); the servo
+// evaluates the newest model every millisecond. The pieces are the ones the separate
+// processes use: SimScene + DelayedScanner (the scanner), TrackerNode (`echoservo track`),
+// ServoNode on the simulated catheter (`echoservo servo`). Three threads: scanner
+// (rendering on one TBB thread), tracker, servo.
 //
 // Figures: tip-to-target error = the tip's distance from where it should be (the target less
 // the standoff along the catheter axis), from the EM tracker's samples mapped back with the
@@ -37,6 +39,11 @@ struct DemoOptions {
   double metrics_start_s = 3.0;
   std::uint64_t seed = 1;
   std::filesystem::path out_dir;  // the RUN directory (docs/report.md); empty: not written
+  // Also write the volumes the tracker processed to out_dir/volumes.igs.mha (a PLUS
+  // sequence, uncompressed: 4.9 MB a volume, kept in memory until the end, so at most
+  // kMaxSavedDurationS of run) for `echoservo track --replay`.
+  bool save_volumes = false;
+  static constexpr double kMaxSavedDurationS = 20.0;
   double sheath_id_mm = 1.59;     // the seed's water-tank catheter (its two bends)
   double guidewire_od_mm = 1.50;
   int dds_domain = 42;            // the DDS domain of the tracker → servo link (loopback only)
@@ -63,7 +70,8 @@ struct DemoResult {
   std::uint64_t estimates_rejected = 0;
   std::uint64_t em_samples = 0, em_dropouts = 0;
   std::uint64_t servo_cycles = 0, servo_overruns = 0;
-  std::uint64_t limit_faults = 0;
+  std::uint64_t limit_faults = 0;         // limiter interventions counted as faults (clamps)
+  std::uint64_t limit_violations = 0;     // cycles commanding outside a limit: must be 0
   std::uint64_t resumes = 0;               // following resumed after a watchdog retraction
   int ekf_harmonics = 0;
   double ekf_rate_hz = 0.0;

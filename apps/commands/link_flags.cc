@@ -1,0 +1,45 @@
+#include "apps/commands/link_flags.h"
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <csignal>
+
+#include "link/dds_link.h"
+
+namespace echoservo::apps {
+namespace {
+
+std::atomic<bool> g_stop{false};
+
+extern "C" void OnStopSignal(int) { g_stop.store(true); }
+
+}  // namespace
+
+void AddLinkFlags(CLI::App& cmd, LinkFlags& f) {
+  cmd.add_option("--dds-domain", f.domain, "DDS domain of the tracker ↔ servo link")->check(CLI::Range(0, 232));
+  cmd.add_flag("--loopback", f.loopback, "this host only: UDP on 127.0.0.1, no multicast");
+  cmd.add_option("--interface", f.interfaces, "IPv4 address of an interface to use (repeatable; default: all)");
+  cmd.add_option("--peer", f.peers, "unicast discovery peer A.B.C.D[:PORT] where multicast does not pass (repeatable)");
+  cmd.add_flag("--no-shm", f.no_shm, "UDP only (no shared-memory transport)");
+}
+
+link::ParticipantOptions ToParticipantOptions(const LinkFlags& f, const std::string& name) {
+  link::ParticipantOptions o;
+  o.domain_id = f.domain;
+  o.name = name;
+  o.loopback_only = f.loopback;
+  o.interfaces = f.interfaces;
+  o.initial_peers = f.peers;
+  o.shared_memory = !f.no_shm;  // loopback_only sets its own transports (UDP only)
+  o.Validate();
+  return o;
+}
+
+void InstallStopSignals() {
+  std::signal(SIGINT, OnStopSignal);
+  std::signal(SIGTERM, OnStopSignal);
+}
+
+bool StopRequested() { return g_stop.load(); }
+
+}  // namespace echoservo::apps

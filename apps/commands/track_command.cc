@@ -1,0 +1,222 @@
+// `echoservo track`: the tracker process — volumes in, catheter and target detected, the
+// heartbeat EKF's predicted target motion published over DDS (live::TrackerNode).
+// Sources:
+//   --connect HOST:PORT  an OpenIGTLink scanner stream (imaging/igtl/ingest.h); the
+//                        acquisition time is the message's timestamp when it is on the
+//                        shared clock (the scanner stamps wall-clock time), else arrival;
+//   --sim                the embedded simulated scanner (water tank, 50–100 ms imaging
+//                        delay); its catheter is advanced to the tip the servo reports on
+//                        the catheter-state topic, which closes the loop across processes;
+//   --replay FILE        a recording (PLUS sequence, volume file or folder; imaging/io/
+//                        recording.h) processed as fast as possible on its own timestamps,
+//                        offline (nothing published): with --out, a RUN directory whose
+//                        targets a report scores against the recorded run's EM log.
+// --out RUN writes targets.csv (and run.json; for a replay of RUN/volumes.igs.mha the
+// recorded run's heart rate, standoff and EM calibration are carried over).
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "apps/commands/link_flags.h"
+#include "apps/commands/live_commands.h"
+#include "apps/live/delayed_scanner.h"
+#include "apps/live/pipeline_clock.h"
+#include "apps/live/sim_scene.h"
+#include "apps/live/tracker_node.h"
+#include "hw/run_record.h"
+#include "imaging/igtl/ingest.h"
+#include "imaging/io/recording.h"
+#include "link/clock.h"
+
+namespace echoservo::apps {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TrackArgs {
+  LinkFlags link;
+  bool sim = false;
+  std::string connect;
+  std::string replay;
+  double duration_s = 0.0;
+  std::string out;
+  bool json = false;
+  // EKF
+  int harmonics = 0;
+  int max_harmonics = 8;
+  double init_window_s = 2.0;
+  // --sim
+  double rate_hz = 25.0, delay_min_s = 0.05, delay_max_s = 0.10, heart_rate_bpm = 60.0, target_p2p_mm = 10.0;
+  std::uint64_t seed = 1;
+};
+
+// run.json of the replayed recording's RUN directory, when the file lies in one.
+hw::RunInfo ReplayInfo(const fs::path& file) {
+  hw::RunInfo info;
+  const fs::path dir = file.parent_path().empty() ? fs::path(".") : file.parent_path();
+  nlohmann::json meta = {{"source", "echoservo track --replay"}, {"replay_of", file.string()}};
+  if (fs::exists(dir / "run.json")) {
+    const hw::RunRecord recorded = hw::ReadRunRecord(dir);
+    info.heart_rate_hz = recorded.info.heart_rate_hz;
+    info.standoff_mm = recorded.info.standoff_mm;
+    const auto m = nlohmann::json::parse(recorded.info.metadata_json, nullptr, false);
+    if (m.is_object() && m.contains("em_to_image")) meta["em_to_image"] = m["em_to_image"];
+  }
+  info.metadata_json = meta.dump();
+  return info;
+}
+
+void RunTrack(const TrackArgs& a) {
+  const int sources = (a.sim ? 1 : 0) + (a.connect.empty() ? 0 : 1) + (a.replay.empty() ? 0 : 1);
+  if (sources != 1) throw std::invalid_argument("track: give exactly one of --sim, --connect HOST:PORT, --replay FILE");
+  if (a.sim && a.duration_s <= 0) throw std::invalid_argument("track --sim: --duration S is required");
+  const bool replay = !a.replay.empty();
+
+  live::TrackerNodeOptions to;
+  to.ekf.harmonics = a.harmonics;
+  to.ekf.max_harmonics = a.max_harmonics;
+  to.ekf.init_window_s = a.init_window_s;
+  std::unique_ptr<hw::RunWriter> writer;
+  if (!a.out.empty()) {
+    hw::RunInfo info;
+    if (replay) {
+      info = ReplayInfo(a.replay);
+    } else {
+      info.heart_rate_hz = a.sim ? std::optional<double>(a.heart_rate_bpm / 60.0) : std::nullopt;
+      info.metadata_json = nlohmann::json{{"source", a.sim ? "echoservo track --sim" : "echoservo track --connect"}}.dump();
+    }
+    writer = std::make_unique<hw::RunWriter>(a.out, info);
+  }
+  std::unique_ptr<link::Participant> participant;
+  std::unique_ptr<link::TargetPublisher> publisher;
+  if (!replay) {
+    participant = std::make_unique<link::Participant>(ToParticipantOptions(a.link, "echoservo_tracker"));
+    publisher = std::make_unique<link::TargetPublisher>(*participant);
+  }
+  InstallStopSignals();
+  auto report_error = [&](const live::TrackedVolume& r) {
+    if (!r.error.empty()) std::fprintf(stderr, "track: volume skipped: %s\n", r.error.c_str());
+  };
+  std::uint64_t missed = 0, dropped = 0;
+  std::optional<live::TrackerNode> node;
+
+  if (replay) {
+    node.emplace(to, nullptr, writer.get());
+    std::unique_ptr<imaging::VolumeSource> source = imaging::OpenRecording(a.replay);
+    double last = -1e300;
+    while (!StopRequested()) {
+      std::optional<imaging::SourceFrame> f = source->Next();
+      if (!f) break;
+      const double t = f->volume.timestamp_s();
+      if (!(t > last)) {  // the EKF needs increasing acquisition times
+        std::fprintf(stderr, "track: %s frame %lld: timestamp %.6f s does not increase; skipped\n", a.replay.c_str(),
+                     static_cast<long long>(f->volume.frame_index()), t);
+        ++dropped;
+        continue;
+      }
+      last = t;
+      report_error(node->Process(f->volume, t, t, [t] { return t; }));
+    }
+  } else if (a.sim) {
+    const live::PipelineClock clock(0.2);
+    to.link_offset_s = clock.link_offset_s();
+    node.emplace(to, publisher.get(), writer.get());
+    live::SimScene scene({a.rate_hz, a.heart_rate_bpm, a.target_p2p_mm, 8.0, a.seed});
+    // The servo's tip moves the catheter in the scene.
+    link::StateSubscriber state(*participant, {}, [&scene](const link::CatheterStateSample& s, double) {
+      scene.SetPlantTip(s.tip_estimate_mm);
+    });
+    live::DelayedScanner scanner(scene, clock, {a.rate_hz, a.delay_min_s, a.delay_max_s, a.duration_s, a.seed});
+    while (!StopRequested()) {
+      std::optional<live::Delivery> d = scanner.Next(0.05);
+      if (!d) {
+        if (scanner.finished()) break;
+        continue;
+      }
+      const double arrived = clock.Now();
+      report_error(node->Process(d->volume, d->acquired_s, arrived, [&clock] { return clock.Now(); }));
+    }
+    scanner.Stop();
+    missed = scanner.missed();
+    dropped = scanner.dropped();
+  } else {
+    node.emplace(to, publisher.get(), writer.get());
+    const auto colon = a.connect.rfind(':');
+    if (colon == std::string::npos) throw std::invalid_argument("track --connect: expected HOST:PORT, got '" + a.connect + "'");
+    imaging::openigtlink::IngestOptions io;
+    io.host = a.connect.substr(0, colon);
+    try {
+      io.port = std::stoi(a.connect.substr(colon + 1));
+    } catch (const std::exception&) {
+      throw std::invalid_argument("track --connect: bad port in '" + a.connect + "'");
+    }
+    io.queue_capacity = 2;
+    imaging::openigtlink::IngestClient client(io);
+    client.Start();
+    const double start = link::NowS();
+    while (!StopRequested() && (a.duration_s <= 0 || link::NowS() - start < a.duration_s) && !client.ended()) {
+      std::optional<imaging::openigtlink::IngestedFrame> f = client.NextFrame(0.1);
+      if (!f) continue;
+      const double acquired = f->latency_ms ? f->frame.volume.timestamp_s() : f->arrival_s;
+      report_error(node->Process(f->frame.volume, acquired, f->arrival_s, [] { return link::NowS(); }));
+    }
+    client.Stop();
+    dropped = static_cast<std::uint64_t>(client.stats().dropped);
+  }
+  if (writer) writer->Flush();
+
+  const live::TrackerStats& s = node->stats();
+  if (a.json) {
+    std::cout << nlohmann::json{{"volumes", s.volumes},
+                                {"measured", s.measured},
+                                {"not_found", s.not_found},
+                                {"errors", s.errors},
+                                {"published", s.published},
+                                {"publish_failures", s.publish_failures},
+                                {"dropped", dropped},
+                                {"missed_acquisitions", missed},
+                                {"ekf_harmonics", node->ekf().harmonics()},
+                                {"ekf_rate_hz", node->ekf().rate_hz()},
+                                {"run_dir", a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}}
+                     .dump(2)
+              << "\n";
+  } else {
+    std::printf("track: %llu volumes, %llu with catheter and target, %llu published, %llu errors; EKF %d harmonics at %.3f Hz\n",
+                static_cast<unsigned long long>(s.volumes), static_cast<unsigned long long>(s.measured),
+                static_cast<unsigned long long>(s.published), static_cast<unsigned long long>(s.errors),
+                node->ekf().harmonics(), node->ekf().rate_hz());
+  }
+}
+
+}  // namespace
+
+void AddTrackCommand(CLI::App& app) {
+  auto a = std::make_shared<TrackArgs>();
+  CLI::App* cmd = app.add_subcommand("track", "tracker process: volumes → detector → heartbeat EKF → target estimates over DDS");
+  cmd->add_flag("--sim", a->sim, "the embedded simulated scanner, its catheter moved by the servo's reported tip");
+  cmd->add_option("--connect", a->connect, "HOST:PORT of an OpenIGTLink scanner stream");
+  cmd->add_option("--replay", a->replay, "a recording (PLUS sequence, volume file or folder), processed offline");
+  cmd->add_option("--duration", a->duration_s, "run length, s (0: until the stream ends or SIGINT)")->check(CLI::Range(0.0, 86400.0));
+  cmd->add_option("--out", a->out, "write a RUN directory (targets.csv, run.json)");
+  cmd->add_option("--harmonics", a->harmonics, "EKF harmonics (0: automatic)")->check(CLI::Range(0, 12));
+  cmd->add_option("--max-harmonics", a->max_harmonics, "EKF automatic harmonics up to")->check(CLI::Range(1, 12));
+  cmd->add_option("--init-window", a->init_window_s, "EKF initial window, s")->check(CLI::Range(1.0, 30.0));
+  cmd->add_option("--rate", a->rate_hz, "--sim: volume rate, vol/s")->check(CLI::Range(1.0, 60.0));
+  cmd->add_option("--delay-min", a->delay_min_s, "--sim: imaging delay, lower end, s")->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--delay-max", a->delay_max_s, "--sim: imaging delay, upper end, s")->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--heart-rate", a->heart_rate_bpm, "--sim: target heart rate, bpm")->check(CLI::Range(30.0, 180.0));
+  cmd->add_option("--target-p2p", a->target_p2p_mm, "--sim: target excursion, mm")->check(CLI::Range(0.1, 20.0));
+  cmd->add_option("--seed", a->seed, "--sim: simulation seed");
+  AddLinkFlags(*cmd, a->link);
+  cmd->add_flag("--json", a->json, "print the summary as JSON");
+  cmd->callback([a] { RunTrack(*a); });
+}
+
+}  // namespace echoservo::apps

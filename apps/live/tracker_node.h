@@ -1,0 +1,83 @@
+// The tracker node of the live pipeline: one volume in → catheter and target detected
+// (tracking/radon_detector.h, tracking mode) → the target's axis coordinate s = p · axis
+// into the heartbeat EKF (estimation/heartbeat_ekf.h) → the predicted motion published as
+// a target estimate on the DDS link (link/dds_link.h) → a row in the RUN directory
+// (hw/run_record.h). `echoservo track` (from a scanner stream, a recording or the
+// embedded simulated scanner) and `echoservo demo` drive the same node.
+//
+// Clocks: the caller's times (acquisition, arrival, now) are on one node clock in s; the
+// link's stamps are node time + link_offset_s (0 when the node clock is the link clock).
+// The axis coordinates use the first detection's axis direction for the whole run, with
+// the image origin as origin (the link's convention, link/samples.h). Errors in one volume
+// (a detector that cannot judge it, a measurement the EKF refuses) are counted and
+// reported in the result; the node goes on with the next volume.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+
+#include "estimation/heartbeat_ekf.h"
+#include "imaging/volume.h"
+#include "link/dds_link.h"
+#include "tracking/radon_detector.h"
+
+namespace echoservo::hw {
+class RunWriter;
+}
+
+namespace echoservo::live {
+
+struct TrackerNodeOptions {
+  tracking::RadonDetectorOptions detector;
+  estimation::HeartbeatEkfOptions ekf = DefaultEkfOptions();
+  double link_offset_s = 0.0;  // link time − node time
+
+  // The live defaults: a 2 s initial window, up to 8 harmonics.
+  static estimation::HeartbeatEkfOptions DefaultEkfOptions();
+};
+
+// What the node did with one volume.
+struct TrackedVolume {
+  tracking::CatheterDetection detection;
+  bool measured = false;        // catheter and target found, EKF updated
+  bool published = false;       // an estimate went out (EKF initialised, link present)
+  std::uint64_t sequence = 0;   // its sequence number
+  double published_s = 0.0;     // node clock
+  std::string error;            // non-empty when the volume could not be processed
+};
+
+struct TrackerStats {
+  std::uint64_t volumes = 0, measured = 0, not_found = 0, published = 0, errors = 0, publish_failures = 0;
+};
+
+class TrackerNode {
+ public:
+  // `publisher` (may be null: no link) and `writer` (may be null: no RUN directory) must
+  // outlive the node. Throws std::invalid_argument for bad options.
+  TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher, hw::RunWriter* writer);
+
+  // Processes one volume acquired at `acquired_s` that arrived at `arrived_s`; `now_s`
+  // gives the node clock (the publication time is taken after detection and EKF).
+  TrackedVolume Process(const imaging::Volume& volume, double acquired_s, double arrived_s,
+                        const std::function<double()>& now_s);
+
+  const TrackerStats& stats() const { return stats_; }
+  const estimation::HeartbeatEkf& ekf() const { return ekf_; }
+  // The axis direction of the link's coordinates (nullopt before the first detection).
+  const std::optional<Eigen::Vector3d>& reference_axis() const { return reference_axis_; }
+
+ private:
+  TrackerNodeOptions o_;
+  link::TargetPublisher* publisher_;
+  hw::RunWriter* writer_;
+  tracking::RadonDetector detector_;
+  estimation::HeartbeatEkf ekf_;
+  std::optional<Eigen::Vector3d> reference_axis_;
+  std::uint64_t sequence_ = 0;
+  TrackerStats stats_;
+};
+
+}  // namespace echoservo::live
