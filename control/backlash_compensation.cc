@@ -27,19 +27,23 @@ double DirectionTracker::Update(double v, bool* switched) {
   return sign_;
 }
 
-StaticInverse::StaticInverse(double width_mm, double max_acceleration_mm_s2) : width_mm_(width_mm) {
+StaticInverse::StaticInverse(double width_mm, double max_acceleration_mm_s2, double time_advance_s)
+    : width_mm_(width_mm), time_advance_s_(time_advance_s) {
   if (!(std::isfinite(width_mm) && width_mm >= 0.0)) {
     throw std::invalid_argument("static inverse: width_mm must be finite and >= 0");
   }
   if (!(std::isfinite(max_acceleration_mm_s2) && max_acceleration_mm_s2 > 0.0)) {
     throw std::invalid_argument("static inverse: max_acceleration_mm_s2 must be > 0");
   }
+  if (!(std::isfinite(time_advance_s) && time_advance_s >= 0.0 && time_advance_s <= 0.1)) {
+    throw std::invalid_argument("static inverse: time_advance_s must be in [0, 0.1] s");
+  }
   lead_s_ = LeadForWidth(width_mm, max_acceleration_mm_s2);
 }
 
 BaseCommand StaticInverse::DoCalc(const CompensatorInput& in) {
-  const MotionSample r = in.reference->Evaluate(in.t_s);
-  const MotionSample ahead = in.reference->Evaluate(in.t_s + lead_s_);
+  const MotionSample r = in.reference->Evaluate(in.t_s + time_advance_s_);
+  const MotionSample ahead = in.reference->Evaluate(in.t_s + time_advance_s_ + lead_s_);
   bool switched = false;
   const double s = direction_.Update(ahead.velocity_mm_s, &switched);
   return {r.position_mm + 0.5 * s * width_mm_, r.velocity_mm_s};

@@ -7,7 +7,10 @@
 //  - StaticInverse: the inverse deadzone with a fixed width (the geometric θ·gap or a
 //    calibrated one): base = r + s·W/2, s the direction of motion; the switch of s is
 //    taken `lead` seconds early so the base has crossed half the deadzone when the
-//    reference reverses (lead = √(W/a_max), half a bang-bang crossing).
+//    reference reverses (lead = √(W/a_max), half a bang-bang crossing). With a
+//    `time_advance_s` τ the reference is read τ ahead, r(t + τ): the tip lags the
+//    base command by the position loop's and the transmission's lag, and a predicted
+//    reference (the estimator's Fourier model) can be read ahead at no cost.
 //  - IterativeInverse: the seed's offline method, a time-indexed correction table
 //    updated between runs by adding the previous run's tip error (P-type learning).
 //  - AdaptiveInverse: the static inverse whose width, lag and offset are estimated
@@ -74,11 +77,13 @@ class DirectionTracker {
 
 class StaticInverse final : public BacklashCompensator {
  public:
-  // Throws std::invalid_argument for a negative/non-finite width or acceleration.
-  StaticInverse(double width_mm, double max_acceleration_mm_s2);
+  // Throws std::invalid_argument for a negative/non-finite width or acceleration, or a
+  // time advance outside [0, 0.1] s.
+  StaticInverse(double width_mm, double max_acceleration_mm_s2, double time_advance_s = 0.0);
   std::string name() const override { return "inverse"; }
   void Reset() override { direction_.Reset(); }
   double lead_s() const { return lead_s_; }
+  double time_advance_s() const { return time_advance_s_; }
 
  protected:
   BaseCommand DoCalc(const CompensatorInput& in) override;
@@ -86,6 +91,7 @@ class StaticInverse final : public BacklashCompensator {
  private:
   double width_mm_;
   double lead_s_;
+  double time_advance_s_;
   DirectionTracker direction_;
 };
 

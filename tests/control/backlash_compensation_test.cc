@@ -116,7 +116,31 @@ TEST(StaticInverseTest, ZeroWidthIsTheIdentity) {
   }
 }
 
+// A time advance τ reads the reference τ ahead: base = r(t + τ) ± W/2, velocity ṙ(t + τ), and
+// the direction switches τ earlier too.
+TEST(StaticInverseTest, TimeAdvanceReadsTheReferenceAhead) {
+  const SineTrajectory sine(5.0, 1.0);
+  const double width = 1.0, tau = 0.008;
+  StaticInverse plain(width, 60000.0), ahead(width, 60000.0, tau);
+  EXPECT_EQ(ahead.time_advance_s(), tau);
+  EXPECT_EQ(plain.time_advance_s(), 0.0);
+  const auto step = static_cast<std::size_t>(std::llround(tau / kDt));
+  std::vector<BaseCommand> p, a;
+  for (std::size_t k = 0; k < 1000 + step; ++k) {
+    p.push_back(plain.Calc(At(sine, k)));
+    if (k < 1000) a.push_back(ahead.Calc(At(sine, k)));
+  }
+  // From the first motion on, the advanced command at cycle k is the plain one at k + τ/dt.
+  for (std::size_t k = 10; k < 1000; ++k) {
+    EXPECT_NEAR(a[k].position_mm, p[k + step].position_mm, 1e-9) << k;
+    EXPECT_NEAR(a[k].velocity_mm_s, p[k + step].velocity_mm_s, 1e-9) << k;
+  }
+}
+
 TEST(StaticInverseTest, RejectsInvalidArguments) {
+  EXPECT_THROW(StaticInverse(1.0, 60000.0, -0.001), std::invalid_argument);
+  EXPECT_THROW(StaticInverse(1.0, 60000.0, 0.2), std::invalid_argument);
+  EXPECT_THROW(StaticInverse(1.0, 60000.0, kNaN), std::invalid_argument);
   EXPECT_THROW(StaticInverse(-0.1, 60000.0), std::invalid_argument);
   EXPECT_THROW(StaticInverse(kNaN, 60000.0), std::invalid_argument);
   EXPECT_THROW(StaticInverse(1.0, 0.0), std::invalid_argument);
