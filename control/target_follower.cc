@@ -31,6 +31,9 @@ void FollowerConfig::Validate() const {
   if (!(offset_gain > 0 && offset_gain <= 1)) bad("offset_gain", "must be in (0, 1]");
   if (!(min_confidence >= 0 && min_confidence <= 1)) bad("min_confidence", "must be in [0, 1]");
   if (!(max_future_s >= 0 && max_future_s <= 1)) bad("max_future_s", "must be in [0, 1] s");
+  if (!(scale_gain > 0 && scale_gain <= 1)) bad("scale_gain", "must be in (0, 1]");
+  if (!(scale_prior_sd > 0 && scale_prior_sd <= 1)) bad("scale_prior_sd", "must be in (0, 1]");
+  if (!(tip_noise_mm > 0 && tip_noise_mm <= 10)) bad("tip_noise_mm", "must be in (0, 10] mm");
 }
 
 std::string ToString(FollowerMode mode) {
@@ -105,7 +108,30 @@ bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
     ++counters_.rejected_confidence;
     return false;
   }
-  const double measured_offset = e.tip_axis_mm - TipAt(e.acquired_s);
+  const double x = TipAt(e.acquired_s);
+  if (config_.estimate_scale) {
+    // Exponentially weighted least squares of s_tip on x_tip, the slope pulled towards 1 by
+    // its prior: slope = (cov + λ)/(var + λ), λ = σ_tip²/(n_eff·σ_k²), n_eff = (2 − g)/g the
+    // weighted window's effective number of volumes.
+    const double g = config_.scale_gain;
+    if (!offset_known_) {
+      mean_x_ = x;
+      mean_s_ = e.tip_axis_mm;
+    } else {
+      const double dx = x - mean_x_, ds = e.tip_axis_mm - mean_s_;
+      mean_x_ += g * dx;
+      mean_s_ += g * ds;
+      var_x_ = (1 - g) * (var_x_ + g * dx * dx);
+      cov_xs_ = (1 - g) * (cov_xs_ + g * dx * ds);
+    }
+    const double n_eff = (2 - g) / g;
+    const double lambda = config_.tip_noise_mm * config_.tip_noise_mm /
+                          (n_eff * config_.scale_prior_sd * config_.scale_prior_sd);
+    const double k_max = 4 * config_.scale_prior_sd;
+    scale_ = std::clamp((cov_xs_ + lambda) / (var_x_ + lambda), 1 - k_max, 1 + k_max);
+    scale_ = std::max(scale_, 0.1);
+  }
+  const double measured_offset = e.tip_axis_mm - scale_ * x;
   offset_mm_ = offset_known_ ? offset_mm_ + config_.offset_gain * (measured_offset - offset_mm_) : measured_offset;
   offset_known_ = true;
   estimate_ = e;
@@ -160,10 +186,11 @@ MotionSample TargetFollower::Evaluate(double t_s) const {
   MotionSample m;
   switch (mode_) {
     case FollowerMode::kFollowing: {
+      // Image mm → catheter mm: x = (s − c)/k.
       const auto s = estimate_.target_motion.Evaluate(t_s);
-      m.position_mm = s.position_mm - config_.standoff_mm - offset_mm_;
-      m.velocity_mm_s = s.velocity_mm_s;
-      m.acceleration_mm_s2 = s.acceleration_mm_s2;
+      m.position_mm = (s.position_mm - config_.standoff_mm - offset_mm_) / scale_;
+      m.velocity_mm_s = s.velocity_mm_s / scale_;
+      m.acceleration_mm_s2 = s.acceleration_mm_s2 / scale_;
       break;
     }
     case FollowerMode::kRetracting: {

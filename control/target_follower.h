@@ -10,6 +10,16 @@
 // (imaging noise ~0.2 mm). The reference is x_ref(t) = s_target(t) − standoff − c, with the
 // model's velocity and acceleration for feed-forward.
 //
+// Scale (`estimate_scale`): image and catheter millimetres need not be equal. A scanner
+// assumes a sound speed (1540 m/s) that the medium does not have (water at 20 °C: 1482 m/s),
+// so it scales every distance by the ratio (+3.9 % in water), and a catheter's drive may have a
+// transmission ratio. With it the model is s_tip = k·x_tip + c: k is the slope of the detected
+// tip's axis coordinate against the servo's tip at acquisition, an exponentially weighted
+// least-squares fit over ~2/scale_gain volumes with a prior k = 1 ± scale_prior_sd (so it stays
+// near 1 until the tip has moved enough to measure it), and the reference becomes
+// x_ref = (s_target − standoff − c)/k. Uncorrected, a 10 mm peak-to-peak target motion leaves
+// (k − 1)·10 mm peak to peak of tip error.
+//
 // Safety supervisor (evaluated every cycle by Update): disabled until Enable; a stop command
 // holds the tip where it is within the cycle it arrives in; when the newest estimate is
 // older than `stale_after_s` or past its validity horizon the tip holds (fault
@@ -47,6 +57,10 @@ struct FollowerConfig {
   double travel_min_mm = -15.0;    // reference clamp (catheter coordinates)
   double travel_max_mm = 15.0;
   double offset_gain = 0.2;        // low-pass gain of the image↔catheter offset per volume
+  bool estimate_scale = false;     // fit the image/catheter scale k (see above); false: k = 1
+  double scale_gain = 0.01;        // the scale fit's weight of each new volume, (0, 1]
+  double scale_prior_sd = 0.05;    // prior k = 1 ± this, (0, 1]
+  double tip_noise_mm = 0.2;       // the detected tip's noise σ (weighs the prior), (0, 10]
   double min_confidence = 0.5;     // estimates below are ignored (counted)
   double max_future_s = 0.05;      // acquisition/publication this far ahead of now: rejected
   // Throws std::invalid_argument naming the field.
@@ -98,6 +112,7 @@ class TargetFollower final : public Trajectory {
   std::uint32_t faults() const { return faults_; }
   const FollowerCounters& counters() const { return counters_; }
   double offset_mm() const { return offset_mm_; }
+  double scale() const { return scale_; }  // image mm per catheter mm (1 without estimate_scale)
   bool has_estimate() const { return has_estimate_; }
   double newest_acquired_s() const { return estimate_.acquired_s; }
   const FollowerConfig& config() const { return config_; }
@@ -115,6 +130,9 @@ class TargetFollower final : public Trajectory {
   bool has_estimate_ = false;
   bool offset_known_ = false;
   double offset_mm_ = 0.0;
+  // The scale fit: weighted means of x_tip and s_tip, their (co)variance, and the slope.
+  double scale_ = 1.0;
+  double mean_x_ = 0.0, mean_s_ = 0.0, var_x_ = 0.0, cov_xs_ = 0.0;
   double last_estimate_s_ = -1e300;  // receipt time of the newest accepted estimate
   double hold_mm_ = 0.0;
   double hold_since_s_ = 0.0;

@@ -67,6 +67,54 @@ TEST(TargetFollower, OffsetIsMeasuredAgainstTheTipAtAcquisitionAndLowPassed) {
   EXPECT_NEAR(f.offset_mm(), 10.5, 1e-6);
 }
 
+// The image sees catheter millimetres scaled by k (a sound-speed mismatch: 1540/1482 in
+// water): s_tip = k·x_tip + c. The fitted slope approaches k within the prior's pull,
+// k − (k − 1)·λ/(var(x) + λ), and the reference is x = (s_target − standoff − c)/k.
+TEST(TargetFollower, EstimatesTheImageToCatheterScale) {
+  const double k = 1540.0 / 1482.0, c0 = 30.0, amp = 3.0, f = 1.0;
+  FollowerConfig cfg;
+  cfg.standoff_mm = 3.0;
+  cfg.estimate_scale = true;
+  TargetFollower follower(cfg);
+  TargetFollower plain(FollowerConfig{.standoff_mm = 3.0});
+  EXPECT_EQ(follower.scale(), 1.0);
+  auto tip = [&](double t) { return amp * std::sin(2 * std::numbers::pi * f * t); };
+  double t = 0.0;
+  bool enabled = false;
+  // 40 s of volumes at 25 Hz, the tip moving ±3 mm at 1 Hz.
+  for (int j = 0; j < 1000; ++j) {
+    const double acquired = 0.04 * j;
+    for (; t < acquired + 0.06; t += 0.001) {
+      follower.Update(t, tip(t));
+      plain.Update(t, tip(t));
+    }
+    ASSERT_TRUE(follower.Accept(Estimate(acquired, k * tip(acquired) + c0), t));
+    ASSERT_TRUE(plain.Accept(Estimate(acquired, k * tip(acquired) + c0), t));
+    if (!enabled) {
+      follower.Enable(t);
+      plain.Enable(t);
+      enabled = true;
+    }
+  }
+  EXPECT_EQ(plain.scale(), 1.0);
+  // The prior's pull: λ = σ²/(n_eff·σ_k²) with n_eff = (2 − g)/g, var(x) = amp²/2.
+  const double g = cfg.scale_gain;
+  const double lambda = cfg.tip_noise_mm * cfg.tip_noise_mm / ((2 - g) / g * cfg.scale_prior_sd * cfg.scale_prior_sd);
+  const double expected = k - (k - 1) * lambda / (amp * amp / 2 + lambda);
+  EXPECT_NEAR(follower.scale(), expected, 0.002);
+  // The reference makes the image see the tip at s_target − standoff: k·x_ref + c0.
+  double worst = 0.0, worst_plain = 0.0;
+  for (double te = t; te < t + 0.2; te += 0.01) {
+    const double want = Target(te) - 3.0;
+    worst = std::max(worst, std::abs(k * follower.Evaluate(te).position_mm + c0 - want));
+    worst_plain = std::max(worst_plain, std::abs(k * plain.Evaluate(te).position_mm + c0 - want));
+  }
+  // Within the slope's residual error times the target's distance from the tip's mean.
+  EXPECT_LT(worst, 0.05);
+  // Uncorrected (k = 1): (k − 1)·(s_target − standoff − c0), 0.2–0.45 mm over this window.
+  EXPECT_GT(worst_plain, 0.3);
+}
+
 TEST(TargetFollower, StaleEstimateHoldsThenRetractsAndAFreshOneResumes) {
   FollowerConfig c;
   c.stale_after_s = 0.2;
@@ -170,6 +218,17 @@ TEST(TargetFollower, ConfigIsValidated) {
   c = {};
   c.travel_min_mm = 3.0;
   c.travel_max_mm = 1.0;
+  EXPECT_THROW(TargetFollower{c}, std::invalid_argument);
+  for (double bad : {0.0, 1.5, std::numeric_limits<double>::quiet_NaN()}) {
+    c = {};
+    c.scale_gain = bad;
+    EXPECT_THROW(TargetFollower{c}, std::invalid_argument) << bad;
+    c = {};
+    c.scale_prior_sd = bad;
+    EXPECT_THROW(TargetFollower{c}, std::invalid_argument) << bad;
+  }
+  c = {};
+  c.tip_noise_mm = -0.1;
   EXPECT_THROW(TargetFollower{c}, std::invalid_argument);
 }
 
