@@ -10,6 +10,7 @@
 #include <numbers>
 #include <vector>
 
+#include "tracking/echo_axis_fit.h"
 #include "tracking/radon_transform.h"
 
 namespace echoservo::tracking {
@@ -96,6 +97,52 @@ class DiscProfile {
   std::array<Eigen::Vector3d, 8> offsets_;
 };
 
+// The max of the disc's first echoes at s (DiscProfile's disc): a sample counts when no sample
+// up to `look_back_mm` nearer the transducer along its beam (tracking/echo_axis_fit.h
+// BeamDirectionAt) is brighter. With none, the disc's smallest sample (all tails: not the
+// wire's echo).
+class FirstEchoDiscProfile {
+ public:
+  FirstEchoDiscProfile(const imaging::Volume& v, const Line3& l, const Eigen::Vector3d& u, const Eigen::Vector3d& w,
+                       double r, double look_back_mm)
+      : volume_(v), sample_(v), line_(l),
+        step_(0.5 * v.spacing_mm().minCoeff()),
+        steps_(static_cast<int>(std::ceil(look_back_mm / step_))) {
+    offsets_[0] = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 8; ++k) {
+      const double a = k * std::numbers::pi / 4;
+      offsets_[static_cast<std::size_t>(k + 1)] = r * (std::cos(a) * u + std::sin(a) * w);
+    }
+  }
+
+  double operator()(double s) const {
+    const Eigen::Vector3d c = line_.point + s * line_.direction;
+    double best = std::numeric_limits<double>::quiet_NaN(), least = best;
+    for (const auto& o : offsets_) {
+      const Eigen::Vector3d p = c + o;
+      const double x = sample_(p);
+      if (std::isnan(x)) continue;
+      if (!(least <= x)) least = x;
+      const Eigen::Vector3d back = -step_ * BeamDirectionAt(volume_, p);
+      bool first = true;
+      for (int q = 1; q <= steps_ && first; ++q) {
+        const double y = sample_(p + q * back);
+        if (std::isnan(y)) break;
+        first = !(y > x);
+      }
+      if (first && !(best >= x)) best = x;
+    }
+    return std::isnan(best) ? least : best;
+  }
+
+ private:
+  const imaging::Volume& volume_;
+  Sampler sample_;
+  Line3 line_;
+  double step_;
+  int steps_;
+  std::array<Eigen::Vector3d, 9> offsets_;
+};
 
 // The Gaussian envelope g(z) = exp(−z²/2) and its integral Φ(z), tabulated on z ∈ [−6, 6]
 // (linear interpolation, error < 1e-4): the surface fit below evaluates them ~10^4 times.
@@ -278,6 +325,41 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, cons
     if (r >= 0 && r < N && !std::isnan(prof[static_cast<std::size_t>(r)])) {
       const double x0 = A(prof[static_cast<std::size_t>(q)]), x1 = A(prof[static_cast<std::size_t>(r)]);
       if (x0 > x1) tip_s += step * ds * std::clamp((x0 - cut) / (x0 - x1), 0.0, 1.0);
+    }
+  }
+  if (edge.tip_first_echo_mm > 0) {
+    // The same edge on first echoes only, within 3 mm of it: the level over the 3 mm inside
+    // it (1 mm box smoothed, median) and the outward crossing of its cut.
+    const FirstEchoDiscProfile first(v, line, u, w, 0.6, edge.tip_first_echo_mm);
+    const int half = static_cast<int>(3.0 / ds);
+    std::vector<double> fs_val, fe;
+    for (int t = -half; t <= half; ++t) {
+      fs_val.push_back(tip_s + step * t * ds);
+      fe.push_back(first(fs_val.back()));
+    }
+    std::vector<double> inside;
+    for (int i = 2; i < half; ++i) {
+      double sum = 0;
+      int n = 0;
+      for (int t = -2; t <= 2; ++t)
+        if (!std::isnan(fe[static_cast<std::size_t>(i + t)])) { sum += fe[static_cast<std::size_t>(i + t)]; ++n; }
+      if (n > 0) inside.push_back(sum / n);
+    }
+    if (inside.size() >= 4) {
+      std::sort(inside.begin(), inside.end());
+      const double fe_level = inside[inside.size() / 2];
+      const double fe_cut = A(bg) + tip_fraction * (A(fe_level) - A(bg));
+      int q = 0;
+      while (q + 1 < static_cast<int>(fe.size()) && !std::isnan(fe[static_cast<std::size_t>(q + 1)]) &&
+             A(fe[static_cast<std::size_t>(q + 1)]) >= fe_cut)
+        ++q;
+      if (q > 0 && q + 1 < static_cast<int>(fe.size()) && fe_level > bg) {
+        double s_edge = fs_val[static_cast<std::size_t>(q)];
+        const double x0 = A(fe[static_cast<std::size_t>(q)]);
+        const double x1 = A(fe[static_cast<std::size_t>(q + 1)]);
+        if (!std::isnan(x1) && x0 > x1) s_edge += step * ds * std::clamp((x0 - fe_cut) / (x0 - x1), 0.0, 1.0);
+        tip_s = s_edge;
+      }
     }
   }
   if (!tip_high) line.direction = -line.direction;

@@ -5,6 +5,15 @@
 // background + 30 % of the profile's 90th percentile, gaps ≤ 2 mm) is the catheter; its end
 // nearer the edge of the scanned region is where it enters, the other end is the tip, placed
 // where the profile drops below background + `tip_fraction` of its level over the last 3 mm.
+// That edge is then located again, within 3 mm of it, on a profile of first echoes only
+// (`tip_first_echo_mm`): a metal wire rings, and its comet tail runs along the beam, deeper,
+// from every point of the wire that a beam hits — from its very end too. Where the axis is
+// tilted towards depth the beam has a component along it (sin of the angle), so the tail of
+// the wire's last echoes lies beyond the tip along the axis and within the profile's disc: a
+// half-amplitude edge of all echoes sits 0.1–0.3 mm beyond the tip. A tail sample has its own
+// wire echo nearer the transducer along its beam, brighter (each ring is weaker): the same
+// first-echo rule as the axis fit (tracking/echo_axis_fit.h) leaves the tails out and keeps
+// the wire's near-wall echo, whose blur by the point-spread function is symmetric.
 // Target: forward from 2 mm beyond the tip, the profile is the mean over a 0.75 mm disc.
 // Its first rise above the local background (median of the next 4 mm) by max(12, 10 % of
 // the line level, 5 × the background's robust spread — blood speckles too) marks tissue; the
@@ -34,6 +43,10 @@ double EchoAmplitude(double display, double dynamic_range_db);
 struct EdgeOptions {
   double dynamic_range_db = 50.0;  // the scanner's display dynamic range, (0, 120]
   double edge_fraction = 0.5;      // edge at this fraction between background and level, (0, 1)
+  // The tip's edge is located on first echoes only: a sample with a brighter one up to this
+  // far nearer the transducer along its beam is a reverberation tail, not the wire [0, 50)
+  // mm; 0: off. See FindTip.
+  double tip_first_echo_mm = 3.0;
 };
 
 struct TipEstimate {

@@ -78,6 +78,7 @@ void RadonDetectorOptions::Validate() const {
   tube.Validate();
   if (!(edge.edge_fraction > 0 && edge.edge_fraction < 1)) bad("edge.edge_fraction");
   if (!(edge.dynamic_range_db > 0 && edge.dynamic_range_db <= 120)) bad("edge.dynamic_range_db");
+  if (!(edge.tip_first_echo_mm >= 0 && edge.tip_first_echo_mm < 50)) bad("edge.tip_first_echo_mm");
   if (!(min_line_length_mm >= 0 && std::isfinite(min_line_length_mm))) bad("min_line_length_mm");
   if (!(min_confidence >= 0 && min_confidence <= 1)) bad("min_confidence");
   if (!(tracking_cone_rad > 0 && tracking_cone_rad < 1.5)) bad("tracking_cone_rad");
