@@ -50,6 +50,7 @@ void RunServo(const ServoArgs& a) {
   live::ServoNodeOptions so;
   so.follower.standoff_mm = a.standoff_mm;
   so.follower.offset_gain = 0.05;
+  so.follower.estimate_scale = true;  // the scanner's sound-speed scaling of image mm
   so.follower.stale_after_s = a.stale_after_s;
   so.follower.retract_after_s = a.retract_after_s;
   so.auto_enable = a.auto_enable;

@@ -49,7 +49,7 @@ struct TrackArgs {
   std::string out;
   bool json = false;
   // EKF
-  int harmonics = 0;
+  int harmonics = 8;
   int max_harmonics = 8;
   double init_window_s = 2.0;
   // --sim
@@ -130,8 +130,9 @@ void RunTrack(const TrackArgs& a) {
     node.emplace(to, publisher.get(), writer.get());
     live::SimScene scene({a.rate_hz, a.heart_rate_bpm, a.target_p2p_mm, 8.0, a.seed});
     // The servo's tip moves the catheter in the scene.
-    link::StateSubscriber state(*participant, {}, [&scene](const link::CatheterStateSample& s, double) {
-      scene.SetPlantTip(s.tip_estimate_mm);
+    const double offset = clock.link_offset_s();
+    link::StateSubscriber state(*participant, {}, [&scene, offset](const link::CatheterStateSample& s, double) {
+      scene.SetPlantTip(s.stamp_s - offset, s.tip_estimate_mm);
     });
     live::DelayedScanner scanner(scene, clock, {a.rate_hz, a.delay_min_s, a.delay_max_s, a.duration_s, a.seed});
     while (!StopRequested()) {

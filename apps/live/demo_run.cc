@@ -115,12 +115,14 @@ DemoResult RunDemo(const DemoOptions& o) {
   const PipelineClock clock(0.3);
   TrackerNodeOptions to;
   to.link_offset_s = clock.link_offset_s();
+  if (o.zero_order_hold) to.predictor = TargetPredictor::kZeroOrderHold;
   TrackerNode tracker(to, &target_pub, writer.get());
   SimCatheter catheter = MakeSimCatheter(o.sheath_id_mm, o.guidewire_od_mm, o.seed);
   hw::SimulatedCatheter& plant = *catheter.plant;
   ServoNodeOptions so;
   so.follower.standoff_mm = o.standoff_mm;
   so.follower.offset_gain = 0.05;
+  so.follower.estimate_scale = true;  // image mm = 1540/1482 catheter mm in the water tank
   // The operator's enable once tracking delivers, and again after a retraction (the demo
   // resumes by itself; a clinical system waits for the operator's ENABLE command).
   so.auto_enable = true;
@@ -174,7 +176,7 @@ DemoResult RunDemo(const DemoOptions& o) {
       }
     }
     const double tip_true = plant.truth().tip_mm;
-    scene.SetPlantTip(tip_true);
+    scene.SetPlantTip(t, tip_true);
     const Eigen::Vector3d tip_img = scene.TipImage(tip_true);
     if (t >= o.metrics_start_s) {
       true_sq += (tip_img - scene.DesiredTip(t)).squaredNorm();

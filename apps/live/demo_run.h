@@ -43,6 +43,8 @@ struct DemoOptions {
   // sequence, uncompressed: 4.9 MB a volume, kept in memory until the end, so at most
   // kMaxSavedDurationS of run) for `echoservo track --replay`.
   bool save_volumes = false;
+  // The tracker's published motion: the EKF, or the zero-order-hold baseline.
+  bool zero_order_hold = false;
   static constexpr double kMaxSavedDurationS = 20.0;
   double sheath_id_mm = 1.59;     // the seed's water-tank catheter (its two bends)
   double guidewire_od_mm = 1.50;

@@ -6,6 +6,14 @@
 #include "hw/seed_plant.h"
 
 namespace echoservo::live {
+namespace {
+
+// The reference is read this far ahead: the tip lags the base command by 6.0–6.2 ms
+// through the position loop and the transmission (measured on plant seeds 1–4), and the
+// reference is a prediction, so reading it early costs nothing.
+constexpr double kTipLagS = 0.006;
+
+}  // namespace
 
 SimCatheter MakeSimCatheter(double sheath_id_mm, double guidewire_od_mm, std::uint64_t seed) {
   if (!(guidewire_od_mm > 0 && sheath_id_mm > guidewire_od_mm && sheath_id_mm <= 5))
@@ -21,7 +29,8 @@ SimCatheter MakeSimCatheter(double sheath_id_mm, double guidewire_od_mm, std::ui
   c.plant->Activate();
   c.servo = control::SeedServoConfig(c.plant_options, true);
   c.compensator = std::make_unique<control::StaticInverse>(
-      c.plant_options.config.TotalBendRad() * c.plant_options.config.GapMm(), c.servo.limits.max_acceleration_mm_s2);
+      c.plant_options.config.TotalBendRad() * c.plant_options.config.GapMm(), c.servo.limits.max_acceleration_mm_s2,
+      kTipLagS);
   return c;
 }
 

@@ -2,7 +2,7 @@
 // (hw::SeedTrackingCatheter, two bends) with a chosen sheath and guidewire, its seed-
 // calibrated plant (hw::SeedCalibratedPlant), configured and active at base 0, the seed's
 // servo gains with friction feed-forward, and the static backlash inverse for its
-// deadzone width B = θ·(D_sheath − D_guidewire). The adaptive inverse learned poorly from
+// deadzone width B = θ·(D_sheath − D_guidewire), read 6 ms ahead for the tip's lag. The adaptive inverse learned poorly from
 // a reference that changes with every volume (servo tracking 1.2 mm RMS against 0.19 mm).
 // Units: mm, s, N.
 #pragma once

@@ -1,5 +1,6 @@
 #include "apps/live/sim_scene.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <stdexcept>
 
@@ -26,9 +27,9 @@ SimScene::SimScene(const SimSceneOptions& o) : o_(o) {
   std::snprintf(spec, sizeof spec, "mitral:%g:%g", o.heart_rate_bpm, o.target_p2p_mm);
   target_motion_ = control::MakeTrajectory(spec);
   const imaging::sim::CatheterPose rest = so.catheter_pose;
-  so.catheter_pose_at = [this, rest](double) {
+  so.catheter_pose_at = [this, rest](double t) {
     imaging::sim::CatheterPose p = rest;
-    p.advance_mm = rest.advance_mm + plant_tip_mm_.load();
+    p.advance_mm = rest.advance_mm + PlantTipAt(t);
     return p;
   };
   so.target_displacement_mm = [this](double t) { return target_motion_->Evaluate(t).position_mm; };
@@ -54,6 +55,25 @@ SimScene::SimScene(const SimSceneOptions& o) : o_(o) {
 }
 
 SimScene::~SimScene() = default;
+
+void SimScene::SetPlantTip(double t_s, double tip_mm) {
+  std::lock_guard lock(tip_m_);
+  if (!tip_history_.empty() && t_s <= tip_history_.back().first) return;  // out of order: ignored
+  tip_history_.emplace_back(t_s, tip_mm);
+  while (tip_history_.size() > 2 && tip_history_.front().first < t_s - 1.0) tip_history_.pop_front();
+}
+
+double SimScene::PlantTipAt(double t_s) const {
+  std::lock_guard lock(tip_m_);
+  if (tip_history_.empty()) return 0.0;
+  if (t_s <= tip_history_.front().first) return tip_history_.front().second;
+  if (t_s >= tip_history_.back().first) return tip_history_.back().second;
+  const auto hi = std::lower_bound(tip_history_.begin(), tip_history_.end(), t_s,
+                                   [](const std::pair<double, double>& p, double t) { return p.first < t; });
+  const auto lo = hi - 1;
+  const double f = (t_s - lo->first) / (hi->first - lo->first);
+  return lo->second + f * (hi->second - lo->second);
+}
 
 imaging::SourceFrame SimScene::Render(double t_s) { return scanner_->Render(t_s); }
 

@@ -8,9 +8,11 @@
 #pragma once
 
 #include <Eigen/Geometry>
-#include <atomic>
 #include <cstdint>
+#include <deque>
 #include <memory>
+#include <mutex>
+#include <utility>
 
 #include "hw/sim_em_tracker.h"
 #include "imaging/volume_source.h"
@@ -40,10 +42,12 @@ class SimScene {
   SimScene(const SimScene&) = delete;
   SimScene& operator=(const SimScene&) = delete;
 
-  // The plant's tip position (catheter coordinates, mm) the scene shows from now on.
-  void SetPlantTip(double tip_mm) { plant_tip_mm_.store(tip_mm); }
-  double plant_tip_mm() const { return plant_tip_mm_.load(); }
-  // The volume acquired at t_s (not thread-safe: one rendering thread).
+  // The plant's tip position (catheter coordinates, mm) at t_s (pipeline clock), in time
+  // order; the scene shows the tip at each volume's acquisition time, interpolated in
+  // this history (the last second is kept), not where it is when rendering starts.
+  void SetPlantTip(double t_s, double tip_mm);
+  double PlantTipAt(double t_s) const;
+  // The volume acquired at t_s (one rendering thread).
   imaging::SourceFrame Render(double t_s);
 
   Eigen::Vector3d TipImage(double plant_tip_mm) const;
@@ -57,7 +61,8 @@ class SimScene {
 
  private:
   SimSceneOptions o_;
-  std::atomic<double> plant_tip_mm_{0.0};
+  mutable std::mutex tip_m_;
+  std::deque<std::pair<double, double>> tip_history_;  // (t_s, tip_mm)
   std::unique_ptr<control::Trajectory> target_motion_;
   std::unique_ptr<imaging::sim::SimulatedScanner> scanner_;
   Eigen::Isometry3d base_to_world_ = Eigen::Isometry3d::Identity();

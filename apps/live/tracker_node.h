@@ -30,12 +30,18 @@ class RunWriter;
 
 namespace echoservo::live {
 
+// What the node publishes as the target's motion: the heartbeat EKF's prediction, or the
+// zero-order hold of the newest measurement (the baseline: a constant model, no
+// prediction through the delay).
+enum class TargetPredictor { kHeartbeatEkf, kZeroOrderHold };
+
 struct TrackerNodeOptions {
+  TargetPredictor predictor = TargetPredictor::kHeartbeatEkf;
   tracking::RadonDetectorOptions detector;
   estimation::HeartbeatEkfOptions ekf = DefaultEkfOptions();
   double link_offset_s = 0.0;  // link time − node time
 
-  // The live defaults: a 2 s initial window, up to 8 harmonics.
+  // The live defaults: a 2 s initial window, 8 harmonics.
   static estimation::HeartbeatEkfOptions DefaultEkfOptions();
 };
 

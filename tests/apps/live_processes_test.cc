@@ -1,0 +1,152 @@
+// The live pipeline as separate processes over DDS (loopback only, a test-private domain):
+// `echoservo track --sim` and `echoservo servo` close the loop (the servo's reported tip
+// moves the catheter in the tracker's scene); the servo reaches its safe state when the
+// tracker goes away; operator commands (`echoservo command`) reach the servo and its state
+// confirms them; `track --replay` of a demo's recorded volumes reproduces the demo's
+// detections and scores against its EM log. Real time on a shared machine: only what holds
+// under load is asserted (counts within the schedules, limits never violated, watchdog
+// times from the configuration).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "tests/test_util/cli_runner.h"
+#include "tests/test_util/temp_dir.h"
+
+namespace echoservo {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::ReadFile;
+using testing::RunCli;
+using testing::RunShell;
+using testing::ShellQuote;
+
+const std::string kCli = ShellQuote(ECHOSERVO_CLI);
+
+nlohmann::json ParseFile(const fs::path& p) {
+  const std::string text = ReadFile(p);
+  EXPECT_FALSE(text.empty()) << p;
+  return nlohmann::json::parse(text, nullptr, false);
+}
+
+std::vector<std::string> Lines(const fs::path& p) {
+  std::istringstream in(ReadFile(p));
+  std::vector<std::string> out;
+  for (std::string line; std::getline(in, line);) out.push_back(line);
+  return out;
+}
+
+TEST(LiveProcesses, TrackAndServoCloseTheLoopAndTheServoRetractsWhenTheTrackerGoes) {
+  const testing::TempDir dir("live_procs", true);
+  const fs::path servo = dir.path() / "servo.json", track = dir.path() / "track.json";
+  // The servo outlives the tracker by 4 s: its watchdog must hold, then retract.
+  const auto r = RunShell(kCli + " servo --loopback --dds-domain 61 --duration 13 --auto-enable --json > " +
+                          ShellQuote(servo.string()) + " & " + kCli +
+                          " track --sim --loopback --dds-domain 61 --duration 9 --json > " +
+                          ShellQuote(track.string()) + "; rc=$?; wait; exit $rc");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto t = ParseFile(track), s = ParseFile(servo);
+  ASSERT_FALSE(t.is_discarded());
+  ASSERT_FALSE(s.is_discarded());
+  // 25 vol/s for 9 s: ≤ 226 volumes; the catheter and target are found in (nearly) all.
+  EXPECT_LE(t["volumes"].get<int>(), 226);
+  EXPECT_GE(t["volumes"].get<int>(), 100);
+  EXPECT_GE(t["measured"].get<double>(), 0.9 * t["volumes"].get<double>());
+  EXPECT_GT(t["published"].get<int>(), 50);
+  // The servo took the estimates, followed, and never commanded outside a limit.
+  EXPECT_GT(s["estimates_accepted"].get<int>(), 50);
+  EXPECT_EQ(s["limit_violations"].get<int>(), 0);
+  bool tracked = false;
+  for (const auto& m : s["timeline"]) tracked |= m["mode"] == "tracking";
+  EXPECT_TRUE(tracked) << s.dump();
+  // Following: the tip within its setpoint's servo error (~0.2 mm; 1 mm under any load).
+  ASSERT_TRUE(s["tip_to_setpoint_rms_mm"].is_number()) << s.dump();
+  EXPECT_LT(s["tip_to_setpoint_rms_mm"].get<double>(), 1.0);
+  // The tracker went away: hold after 0.25 s without estimates, retract 0.5 s later; the
+  // liveliness lease (0.5 s) reports the tracker lost in between.
+  EXPECT_EQ(s["final_mode"], "retracting") << s.dump();
+  ASSERT_TRUE(s["tracker_lost_s"].is_number()) << s.dump();
+  ASSERT_TRUE(s["safe_state_after_s"].is_number()) << s.dump();
+  EXPECT_LE(s["safe_state_after_s"].get<double>(), 0.25 + 0.5 + 0.05);
+}
+
+TEST(LiveProcesses, OperatorCommandsReachTheServoAndItsStateConfirmsThem) {
+  const testing::TempDir dir("live_cmds", true);
+  const fs::path servo = dir.path() / "servo.json";
+  const std::string link = " --loopback --dds-domain 62 --json";
+  const auto r = RunShell(kCli + " servo --duration 8" + link + " > " + ShellQuote(servo.string()) + " & " +
+                          kCli + " command enable --standoff 6" + link + " && " + kCli +
+                          " command standoff --standoff 7" + link + " && " + kCli + " command stop" + link +
+                          "; rc=$?; wait; exit $rc");
+  ASSERT_EQ(r.rc, 0) << r.out << r.err;
+  EXPECT_EQ(r.out.find("\"applied\": false"), std::string::npos) << r.out;
+  const auto s = ParseFile(servo);
+  ASSERT_FALSE(s.is_discarded());
+  EXPECT_EQ(s["commands_applied"].get<int>(), 3);
+  EXPECT_EQ(s["final_mode"], "stopped");
+  EXPECT_EQ(s["limit_violations"].get<int>(), 0);
+  // Without a servo on the domain, a command fails clearly.
+  const auto none = RunCli("command stop --loopback --dds-domain 63 --wait 1");
+  EXPECT_NE(none.rc, 0);
+  EXPECT_NE(none.err.find("no servo"), std::string::npos) << none.err;
+}
+
+TEST(LiveProcesses, ReplayOfARecordedDemoReproducesItsDetectionsAndScoresAgainstItsEmLog) {
+  const testing::TempDir dir("live_replay", true);
+  const fs::path run = dir.path() / "run", replay = dir.path() / "replay";
+  auto r = RunCli("demo --duration 5 --metrics-start 2 --save-volumes --dds-domain 64 --json --out " +
+                  ShellQuote(run.string()));
+  ASSERT_EQ(r.rc, 0) << r.err;
+  ASSERT_TRUE(fs::exists(run / "volumes.igs.mha"));
+  r = RunCli("track --replay " + ShellQuote((run / "volumes.igs.mha").string()) + " --json --out " +
+             ShellQuote(replay.string()));
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  // Every volume the demo's tracker processed was recorded and replayed, and the same
+  // detector on the same volumes finds the same catheter and target.
+  const std::vector<std::string> live = Lines(run / "targets.csv"), again = Lines(replay / "targets.csv");
+  ASSERT_EQ(live.size(), again.size());
+  EXPECT_EQ(j["volumes"].get<std::size_t>() + 1, live.size());
+  auto detection = [](const std::string& row) {  // found … confidence, without the three times
+    std::size_t p = 0;
+    for (int i = 0; i < 3; ++i) p = row.find(',', p) + 1;
+    return row.substr(p);
+  };
+  for (std::size_t i = 1; i < live.size(); ++i) ASSERT_EQ(detection(live[i]), detection(again[i])) << "row " << i;
+  // The replay's RUN carries the recording's EM calibration; the report scores it against
+  // the recorded EM log.
+  r = RunCli("report " + ShellQuote(replay.string()) + " --em " + ShellQuote((run / "em.csv").string()) +
+             " --from 2 --json --out " + ShellQuote((dir.path() / "replay.html").string()));
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto rep = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(rep["em_to_image_given"].get<bool>());
+  EXPECT_TRUE(std::isfinite(rep["tip_to_target_rms_mm"].get<double>()));
+  EXPECT_LT(rep["tip_to_target_rms_mm"].get<double>(), 5.0);  // the tip follows the target within the standoff's scale
+}
+
+TEST(LiveProcesses, BadSourcesAreClearErrors) {
+  auto r = RunCli("track --duration 1");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("exactly one of"), std::string::npos) << r.err;
+  r = RunCli("track --replay /nonexistent/volumes.igs.mha");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("/nonexistent/volumes.igs.mha"), std::string::npos) << r.err;
+  r = RunCli("track --connect localhost --duration 1");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("HOST:PORT"), std::string::npos) << r.err;
+  r = RunCli("track --sim");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("--duration"), std::string::npos) << r.err;
+  r = RunCli("command enable --loopback --dds-domain 65 --wait 1");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("--standoff"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace echoservo
