@@ -3,7 +3,8 @@
 // p99/max, with the samples lost (best effort). Runs the publisher in a second process
 // (this binary re-executed with --publisher) over the loopback-only UDP transport and over
 // Fast DDS's default transports (shared memory on one host), and in a thread of this
-// process (Fast DDS intraprocess delivery), for reference.
+// process (intra-process delivery is off in link::Participant: a second participant of the
+// same process, over the same transports), for reference.
 // Binary: build/bin/echoservo_dds_bench [--samples N] [--rate HZ] [--json].
 // Across two hosts (or network namespaces): run `--subscriber` on one and `--publisher`
 // on the other, each with `--domain D --transport default` and, where multicast does not
@@ -185,7 +186,7 @@ Result InProcess(Args a) {
     publisher = std::thread([&] { Publish(*participant, a.samples, a.rate_hz); });
   };
   const auto join = [&](const auto&) { publisher.join(); };
-  return Measure("one process, two participants (intraprocess)", a, start, join);
+  return Measure("one process, two participants", a, start, join);
 }
 
 // The other host publishes: wait for all samples, or 2 s without a new one after the

@@ -6,6 +6,7 @@
 // "ekf_harmonics", "ekf_rate_hz", "run_dir"}.
 #include <CLI/CLI.hpp>
 
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -13,10 +14,13 @@
 #include <string>
 
 #include "apps/commands/live_commands.h"
+#include "apps/commands/report_command.h"
 #include "apps/live/demo_run.h"
 
 namespace echoservo::apps {
 namespace {
+
+namespace fs = std::filesystem;
 
 struct DemoArgs {
   live::DemoOptions options;
@@ -32,6 +36,9 @@ void RunDemoCommand(const DemoArgs& a) {
   const live::DemoResult r = live::RunDemo(o);
   // The baseline in the same process: the same run (seed, scene, catheter) with the tracker
   // publishing a zero-order hold of its newest measurement instead of the EKF's prediction.
+  // The run's report, as `echoservo report RUN --from <metrics start>` writes it.
+  std::optional<double> report_rms_mm;
+  if (!a.out.empty()) report_rms_mm = WriteRunReport(a.out, (fs::path(a.out) / "report.html").string(), o.metrics_start_s);
   std::optional<live::DemoResult> zoh;
   if (a.baseline) {
     live::DemoOptions b = o;
@@ -64,6 +71,10 @@ void RunDemoCommand(const DemoArgs& a) {
         {"ekf_rate_hz", r.ekf_rate_hz},
         {"run_dir", a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}};
     nlohmann::json out = j;
+    if (report_rms_mm) {
+      out["report"] = (fs::path(a.out) / "report.html").string();
+      out["report_tip_to_target_rms_mm"] = *report_rms_mm;  // EM aligned by the report itself
+    }
     if (zoh) {
       out["baseline"] = {{"predictor", "zero_order_hold"},
                          {"tip_to_target_rms_mm", zoh->tip_to_target_rms_mm},
@@ -87,7 +98,9 @@ void RunDemoCommand(const DemoArgs& a) {
     std::printf("baseline (zero-order hold, same process): %.3f mm (EM), %.3f mm (true tip): %.1f× the EKF's error\n",
                 zoh->tip_to_target_rms_mm, zoh->true_tip_to_target_rms_mm,
                 r.tip_to_target_rms_mm > 0 ? zoh->tip_to_target_rms_mm / r.tip_to_target_rms_mm : 0.0);
-  if (!a.out.empty()) std::printf("run written to %s\n", a.out.c_str());
+  if (!a.out.empty())
+    std::printf("run written to %s; its report (%s/report.html): %.3f mm\n", a.out.c_str(), a.out.c_str(),
+                report_rms_mm.value_or(0.0));
 }
 
 }  // namespace

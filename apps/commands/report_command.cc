@@ -58,7 +58,14 @@ Eigen::Isometry3d ParseTransform(const std::string& text) {
   return t;
 }
 
-void RunReport(const ReportFlags& f) {
+struct Produced {
+  estimation::AccuracyMetrics metrics;
+  estimation::AccuracyReportOptions options;
+  hw::EmLog em;
+};
+
+// Reads the run and its EM log, computes the metrics and writes the HTML page.
+Produced Produce(const ReportFlags& f) {
   const hw::RunRecord run = hw::ReadRunRecord(f.run);
   std::string em_path = f.em;
   if (em_path.empty()) {
@@ -97,6 +104,14 @@ void RunReport(const ReportFlags& f) {
   ro.run_path = f.run;
   ro.em_path = em_path;
   WriteFileAtomically(f.out, estimation::RenderAccuracyReport(run, m, ro));
+  return {m, ro, em};
+}
+
+void RunReport(const ReportFlags& f) {
+  const Produced p = Produce(f);
+  const estimation::AccuracyMetrics& m = p.metrics;
+  const estimation::AccuracyReportOptions& ro = p.options;
+  const hw::EmLog& em = p.em;
   if (f.json) {
     std::cout << estimation::AccuracyJson(m, ro) << "\n";
     return;
@@ -119,6 +134,14 @@ void RunReport(const ReportFlags& f) {
 }
 
 }  // namespace
+
+double WriteRunReport(const std::string& run_dir, const std::string& html_path, double from_s) {
+  ReportFlags f;
+  f.run = run_dir;
+  f.out = html_path;
+  f.from_s = from_s;
+  return Produce(f).metrics.rms_mm;
+}
 
 void AddReportCommand(CLI::App& app) {
   auto f = std::make_shared<ReportFlags>();

@@ -2,6 +2,8 @@
 // EM-tracker log (estimation/accuracy_report.h).
 #pragma once
 
+#include <string>
+
 namespace CLI {
 class App;
 }
@@ -9,5 +11,9 @@ class App;
 namespace echoservo::apps {
 
 void AddReportCommand(CLI::App& app);
+
+// The report of a RUN directory with its own em.csv and calibration, from `from_s` on,
+// written to `html_path`; returns the tip-to-target RMS (mm). Throws like `report`.
+double WriteRunReport(const std::string& run_dir, const std::string& html_path, double from_s);
 
 }  // namespace echoservo::apps

@@ -36,9 +36,11 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
   EXPECT_EQ(j["servo_cycles"].get<int>(), 6001);
   EXPECT_GT(j["detected"].get<int>(), 0);
   EXPECT_TRUE(std::isfinite(j["tip_to_target_rms_mm"].get<double>()));
+  EXPECT_TRUE(std::isfinite(j["report_tip_to_target_rms_mm"].get<double>()));
+  EXPECT_EQ(j["limit_violations"].get<int>(), 0);
   // 40 Hz EM tracker over 6 s.
   EXPECT_NEAR(j["em_samples"].get<int>(), 241, 1);
-  for (const char* f : {"run.json", "targets.csv", "servo.csv", "latency.csv", "em.csv", "truth.csv"})
+  for (const char* f : {"run.json", "targets.csv", "servo.csv", "latency.csv", "em.csv", "truth.csv", "report.html"})
     EXPECT_TRUE(fs::exists(run / f)) << f;
   EXPECT_EQ(ReadFile(run / "em.csv").substr(0, 25), "t_s,x_mm,y_mm,z_mm,status");
   // The report aligns the EM log (with the run's EM calibration) and measures the run.

@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# The live pipeline across two "hosts" on one machine: `echoservo servo` in network
+# namespace es_live_b (10.78.0.2) and `echoservo track --sim` in es_live_a (10.78.0.1),
+# joined by a veth pair, UDP only (--no-shm: namespaces share /dev/shm, hosts do not), with
+# interface whitelists and unicast initial peers (no multicast needed). The tracker's
+# simulated scanner follows the tip the servo reports over the link, so the loop closes
+# across the "hosts". Prints both JSON summaries. Optional netem on the veth (both ways),
+# e.g. NETEM="delay 2ms 1ms loss 1%". Needs root and iproute2; removes what it made on exit.
+# Usage: scripts/live_two_namespaces.sh [build/bin/echoservo] [track seconds]
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+cli=$(realpath "${1:-build/bin/echoservo}")
+seconds=${2:-10}
+a=es_live_a b=es_live_b
+
+cleanup() {
+  ip netns del "$a" 2>/dev/null || true
+  ip netns del "$b" 2>/dev/null || true
+}
+trap cleanup EXIT
+cleanup
+ip netns add "$a"
+ip netns add "$b"
+ip link add es_live_va type veth peer name es_live_vb
+ip link set es_live_va netns "$a"
+ip link set es_live_vb netns "$b"
+ip -n "$a" addr add 10.78.0.1/24 dev es_live_va
+ip -n "$b" addr add 10.78.0.2/24 dev es_live_vb
+for ns in "$a" "$b"; do ip -n "$ns" link set lo up; done
+ip -n "$a" link set es_live_va up
+ip -n "$b" link set es_live_vb up
+if [[ -n "${NETEM:-}" ]]; then
+  ip netns exec "$a" tc qdisc add dev es_live_va root netem $NETEM
+  ip netns exec "$b" tc qdisc add dev es_live_vb root netem $NETEM
+fi
+
+out=$(mktemp -d)
+link_b="--dds-domain 7 --no-shm --interface 10.78.0.2 --peer 10.78.0.1"
+link_a="--dds-domain 7 --no-shm --interface 10.78.0.1 --peer 10.78.0.2"
+ip netns exec "$b" timeout $((seconds + 30)) "$cli" servo $link_b --auto-enable --duration $((seconds + 4)) --json \
+  >"$out/servo.json" 2>"$out/servo.err" &
+servo_pid=$!
+ip netns exec "$a" timeout $((seconds + 30)) "$cli" track --sim $link_a --duration "$seconds" --json \
+  >"$out/track.json" 2>"$out/track.err"
+wait "$servo_pid"
+echo "== track (namespace $a)"
+cat "$out/track.json"
+echo "== servo (namespace $b)"
+cat "$out/servo.json"
+rm -rf "$out"
