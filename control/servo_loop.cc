@@ -40,6 +40,22 @@ CycleRecord ServoLoop::Cycle(double t_s, std::size_t cycle, const Trajectory& re
   hw_.read(t_s, dt);
   const double base = hw_.state(i_base_);
   const double tip = hw_.state(i_tip_);
+  if (!std::isfinite(base) || !std::isfinite(tip)) {
+    // A sensor fault: no control action on a reading that is not a number — the actuator
+    // goes passive (0 N) for this cycle, the PID, limiter and compensator keep their state.
+    ++sensor_faults_;
+    hw_.set_command(c_force_, 0.0);
+    hw_.write(t_s, dt);
+    CycleRecord r;
+    r.t_s = t_s;
+    r.reference_mm = reference.Evaluate(t_s).position_mm;
+    r.base_cmd_mm = limiter_.setpoint_mm();
+    r.base_mm = base;
+    r.tip_mm = tip;
+    r.force_n = hw_.state(i_force_);
+    r.sensor_fault = true;
+    return r;
+  }
 
   const BaseCommand target = compensator.Calc({.t_s = t_s,
                                                .cycle = cycle,

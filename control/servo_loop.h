@@ -5,7 +5,9 @@
 // safety limits (travel, velocity, acceleration), closes the PID position loop with
 // friction/inertia feed-forward, clamps the force and writes it. Two clocks drive it:
 // RunFixedStep (deterministic t = k·period, for simulation and tests) and RunRealtime
-// (a monotonic clock with absolute-deadline sleeps, for hardware). Units: mm, s, N.
+// (a monotonic clock with absolute-deadline sleeps, for hardware). A base or tip reading
+// that is not finite is a sensor fault: that cycle commands 0 N and leaves the controller's
+// state alone (counted; the supervisor above decides what happens next). Units: mm, s, N.
 #pragma once
 
 #include <atomic>
@@ -37,6 +39,7 @@ struct CycleRecord {
   double tip_mm = 0.0;
   double force_n = 0.0;           // force sensor
   double actuator_force_n = 0.0;  // commanded
+  bool sensor_fault = false;      // base or tip not finite: no control action, 0 N
 };
 
 class ServoLoop {
@@ -48,6 +51,8 @@ class ServoLoop {
   CycleRecord Cycle(double t_s, std::size_t cycle, const Trajectory& reference,
                     BacklashCompensator& compensator);
   const CommandLimiter& limiter() const { return limiter_; }
+  // Cycles whose base or tip reading was not finite (actuator passive for that cycle).
+  std::uint64_t sensor_faults() const { return sensor_faults_; }
   const ServoConfig& config() const { return config_; }
 
  private:
@@ -57,6 +62,7 @@ class ServoLoop {
   CommandLimiter limiter_;
   std::size_t i_base_, i_tip_, i_force_, c_force_;
   double last_velocity_mm_s_ = 0.0;
+  std::uint64_t sensor_faults_ = 0;
 };
 
 // Runs `duration_s` on the deterministic clock starting at t = 0 (Start included).

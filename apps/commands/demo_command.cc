@@ -133,6 +133,7 @@ void AddLiveCommands(CLI::App& app) {
   AddTrackCommand(app);
   AddServoCommand(app);
   AddOperatorCommand(app);
+  AddFaultsCommand(app);
 }
 
 }  // namespace echoservo::apps

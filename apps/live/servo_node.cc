@@ -150,7 +150,8 @@ void ServoNode::CheckLimits(const control::CycleRecord& r) {
   const bool bad = !(sp >= l.travel_min_mm - eps && sp <= l.travel_max_mm + eps) ||
                    !(std::abs(v) <= l.max_velocity_mm_s * (1 + eps)) ||
                    !(std::abs(r.actuator_force_n) <= l.max_force_n * (1 + eps)) ||
-                   !(r.base_mm >= l.travel_min_mm - kEndStopMarginMm && r.base_mm <= l.travel_max_mm + kEndStopMarginMm);
+                   (std::isfinite(r.base_mm) &&  // a NaN reading is a sensor fault, not a command
+                    !(r.base_mm >= l.travel_min_mm - kEndStopMarginMm && r.base_mm <= l.travel_max_mm + kEndStopMarginMm));
   if (bad) ++stats_.limit_violations;
 }
 
@@ -173,11 +174,20 @@ ServoCycle ServoNode::Cycle(double t_s, std::uint64_t k) {
   }
   if (target_sub_ && target_sub_->TryTakeLatest(sample_) && ApplyTarget(sample_, t_s))
     out.applied_sequence = sample_.sequence_number;
-  follower_.Update(t_s, hw_.state(tip_index_));
+  const double tip_reading = hw_.state(tip_index_);
+  if (std::isfinite(tip_reading)) last_finite_tip_mm_ = tip_reading;
+  follower_.Update(t_s, last_finite_tip_mm_);
   out.record = loop_.Cycle(t_s, static_cast<std::size_t>(k), follower_, *compensator_);
   last_ = out.record;
   ++stats_.cycles;
   CheckLimits(out.record);
+  // A sensor that reads NaN/inf (base, tip, force): the safe state is a stop — hold where
+  // the tip was, until the operator enables again.
+  if (out.record.sensor_fault || !std::isfinite(out.record.force_n)) {
+    ++stats_.sensor_faults;
+    pending_faults_ |= link::fault::kNonFinite | link::fault::kHardware;
+    if (follower_.mode() != control::FollowerMode::kStopped) follower_.Stop(t_s);
+  }
 
   // Limiter and hardware events since the last state.
   const control::CommandLimiter& lim = loop_.limiter();
@@ -216,11 +226,14 @@ link::CatheterStateSample ServoNode::State(double t_s) const {
   s.mode = ToLinkMode(follower_.mode());
   s.faults = ToLinkFaults(follower_.faults()) | pending_faults_ | (tracker_gone_ ? link::fault::kTrackerLost : 0u);
   s.fault_count = stats_.fault_events;
-  s.base_mm = last_.base_mm;
-  s.base_velocity_mm_s = hw_.state(base_velocity_index_);
-  s.tip_estimate_mm = last_.tip_mm;
-  s.setpoint_mm = last_.reference_mm;
-  s.force_n = last_.force_n;
+  // The state topic carries numbers only (a NaN would be rejected by every reader): a
+  // sensor that reads NaN is reported through the fault bits, its value as 0.
+  auto finite = [](double v) { return std::isfinite(v) ? v : 0.0; };
+  s.base_mm = finite(last_.base_mm);
+  s.base_velocity_mm_s = finite(hw_.state(base_velocity_index_));
+  s.tip_estimate_mm = finite(last_.tip_mm);
+  s.setpoint_mm = finite(last_.reference_mm);
+  s.force_n = finite(last_.force_n);
   s.standoff_mm = follower_.config().standoff_mm;
   s.estimate_age_s = follower_.has_estimate() ? std::max(0.0, t_s - follower_.newest_acquired_s()) : 0.0;
   return s;

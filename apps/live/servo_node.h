@@ -11,7 +11,8 @@
 // supervisor (stale-estimate hold then retract, travel clamp), the servo loop (velocity,
 // acceleration, travel and force limits in control/command_limiter.h), an independent
 // check of every limit on what was commanded (limit_violations: must stay 0), and the
-// state when due. Faults from the follower, the limiter, the hardware and the link (the
+// state when due. A non-finite sensor reading (base, tip, force) stops the servo (hold;
+// the operator enables again). Faults from the follower, the limiter, the hardware and the link (the
 // tracker gone) are reported as link::fault bits; fault_count counts their rising edges.
 // This is the one place control::FollowerMode/faults map to link::ServoMode/fault bits.
 // Units: mm, s, N; positions along the catheter axis.
@@ -49,6 +50,7 @@ struct ServoNodeStats {
   std::uint64_t fault_events = 0;       // rising edges of fault bits
   std::uint64_t limit_violations = 0;   // commanded travel/velocity/force outside the limits
   std::uint64_t limit_interventions = 0;  // limiter faults (travel clamp, non-finite, force clamp)
+  std::uint64_t sensor_faults = 0;        // cycles with a non-finite base, tip or force reading
 };
 
 struct ServoCycle {
@@ -112,6 +114,7 @@ class ServoNode {
   double last_hw_faults_ = 0.0;
   std::uint32_t pending_faults_ = 0;  // limiter/hardware events since the last state
   control::CycleRecord last_;
+  double last_finite_tip_mm_ = 0.0;
   ServoNodeStats stats_;
 };
 
