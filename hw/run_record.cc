@@ -1,6 +1,12 @@
 #include "hw/run_record.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cmath>
+#include <cstring>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <system_error>
@@ -261,7 +267,26 @@ RunWriter::RunWriter(const fs::path& dir, const RunInfo& info) : dir_(dir) {
   }
 }
 
-RunWriter::~RunWriter() = default;
+RunWriter::~RunWriter() {
+  for (File* f : {&targets_, &servo_, &latency_, &em_, &truth_})
+    if (f->fd >= 0) ::close(f->fd);
+}
+
+namespace {
+
+// The whole of `text` in one write(2) where the kernel allows (a regular file takes it whole),
+// retrying after signals and short writes.
+void WriteAll(int fd, const std::string& text, const fs::path& path) {
+  std::size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) throw std::runtime_error(path.string() + ": write error: " + std::strerror(errno));
+    done += static_cast<std::size_t>(n);
+  }
+}
+
+}  // namespace
 
 void RunWriter::Append(File& f, double t_s, const std::string& row) {
   std::lock_guard lock(f.mutex);
@@ -270,13 +295,15 @@ void RunWriter::Append(File& f, double t_s, const std::string& row) {
                                 " s is not after the previous row's " + FormatNumber(f.last_t_s) +
                                 " s");
   }
-  if (!f.out.is_open()) {
-    f.out.open(f.path, std::ios::binary | std::ios::trunc);
-    if (!f.out) throw std::runtime_error(f.path.string() + ": cannot open for writing");
-    f.out << f.header << "\n";
+  std::string text;
+  if (f.fd < 0) {
+    f.fd = ::open(f.path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+    if (f.fd < 0) throw std::runtime_error(f.path.string() + ": cannot open for writing: " + std::strerror(errno));
+    text = f.header + "\n";  // the header goes out with the first row
   }
-  f.out << row << "\n";
-  if (!f.out) throw std::runtime_error(f.path.string() + ": write error");
+  text += row;
+  text += '\n';
+  WriteAll(f.fd, text, f.path);
   f.last_t_s = t_s;
   f.any = true;
 }
@@ -344,10 +371,8 @@ void RunWriter::AddTruth(const TruthRecord& r) {
 void RunWriter::Flush() {
   for (File* f : {&targets_, &servo_, &latency_, &em_, &truth_}) {
     std::lock_guard lock(f->mutex);
-    if (f->out.is_open()) {
-      f->out.flush();
-      if (!f->out) throw std::runtime_error(f->path.string() + ": write error");
-    }
+    if (f->fd >= 0 && ::fdatasync(f->fd) != 0)
+      throw std::runtime_error(f->path.string() + ": cannot sync to disk: " + std::strerror(errno));
   }
 }
 

@@ -23,7 +23,6 @@
 
 #include <Eigen/Core>
 #include <filesystem>
-#include <fstream>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -93,9 +92,12 @@ RunRecord ReadRunRecord(const std::filesystem::path& dir);
 // Writes a RUN directory as the pipeline runs: run.json at once, each CSV with its header
 // on its first row (em.csv and truth.csv only if rows come), rows appended in time order.
 // Each file has its own lock, so the imaging and servo threads may write at the same time.
-// Throws std::invalid_argument for a non-finite value, a time out of order, a mode with a
-// comma, and std::runtime_error on I/O errors. Files are flushed on Flush() and closed by
-// the destructor.
+// Crash safety: every row goes to the kernel in one write(2) as it is added (no user-space
+// buffer), so a process killed at any instant (kill -9) loses at most the row being added,
+// and what is on disk is whole rows a reader accepts; Flush() also asks the kernel to put
+// the files on the disk (fdatasync), for power loss. Throws std::invalid_argument for a
+// non-finite value, a time out of order, a mode with a comma, and std::runtime_error on
+// I/O errors. Files are closed by the destructor.
 class RunWriter {
  public:
   // Creates `dir` (its parents too); an existing run.json there is an error.
@@ -115,7 +117,7 @@ class RunWriter {
   struct File {
     std::filesystem::path path;
     std::string header;
-    std::ofstream out;
+    int fd = -1;  // opened with the first row
     std::mutex mutex;
     double last_t_s = 0.0;
     bool any = false;

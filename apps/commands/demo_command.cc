@@ -6,6 +6,7 @@
 // "ekf_harmonics", "ekf_rate_hz", "run_dir"}.
 #include <CLI/CLI.hpp>
 
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -38,7 +39,15 @@ void RunDemoCommand(const DemoArgs& a) {
   // publishing a zero-order hold of its newest measurement instead of the EKF's prediction.
   // The run's report, as `echoservo report RUN --from <metrics start>` writes it.
   std::optional<double> report_rms_mm;
-  if (!a.out.empty()) report_rms_mm = WriteRunReport(a.out, (fs::path(a.out) / "report.html").string(), o.metrics_start_s);
+  std::string report_error;
+  if (!a.out.empty()) {
+    try {
+      report_rms_mm = WriteRunReport(a.out, (fs::path(a.out) / "report.html").string(), o.metrics_start_s);
+    } catch (const std::exception& e) {  // the run is written either way; say why there is no report
+      report_error = e.what();
+      std::fprintf(stderr, "demo: no report for %s: %s\n", a.out.c_str(), e.what());
+    }
+  }
   std::optional<live::DemoResult> zoh;
   if (a.baseline) {
     live::DemoOptions b = o;
@@ -71,6 +80,7 @@ void RunDemoCommand(const DemoArgs& a) {
         {"ekf_rate_hz", r.ekf_rate_hz},
         {"run_dir", a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}};
     nlohmann::json out = j;
+    if (!report_error.empty()) out["report_error"] = report_error;
     if (report_rms_mm) {
       out["report"] = (fs::path(a.out) / "report.html").string();
       out["report_tip_to_target_rms_mm"] = *report_rms_mm;  // EM aligned by the report itself
@@ -98,9 +108,11 @@ void RunDemoCommand(const DemoArgs& a) {
     std::printf("baseline (zero-order hold, same process): %.3f mm (EM), %.3f mm (true tip): %.1f× the EKF's error\n",
                 zoh->tip_to_target_rms_mm, zoh->true_tip_to_target_rms_mm,
                 r.tip_to_target_rms_mm > 0 ? zoh->tip_to_target_rms_mm / r.tip_to_target_rms_mm : 0.0);
-  if (!a.out.empty())
+  if (report_rms_mm)
     std::printf("run written to %s; its report (%s/report.html): %.3f mm\n", a.out.c_str(), a.out.c_str(),
-                report_rms_mm.value_or(0.0));
+                *report_rms_mm);
+  else if (!a.out.empty())
+    std::printf("run written to %s (no report: %s)\n", a.out.c_str(), report_error.c_str());
 }
 
 }  // namespace

@@ -130,6 +130,26 @@ TEST(LiveProcesses, ReplayOfARecordedDemoReproducesItsDetectionsAndScoresAgainst
   EXPECT_LT(rep["tip_to_target_rms_mm"].get<double>(), 5.0);  // the tip follows the target within the standoff's scale
 }
 
+TEST(LiveProcesses, ADemoKilledMidRunLeavesARunItsReportReads) {
+  const testing::TempDir dir("live_kill9", true);
+  const fs::path run = dir.path() / "run";
+  // Killed once 5 s of servo rows (100 Hz) are on disk, wherever the demo is then.
+  const std::string servo_csv = ShellQuote((run / "servo.csv").string());
+  auto r = RunShell(kCli + " demo --duration 120 --dds-domain 66 --out " + ShellQuote(run.string()) +
+                    " > /dev/null 2>&1 & pid=$!; for i in $(seq 1 900); do n=$(cat " + servo_csv +
+                    " 2>/dev/null | wc -l); [ \"$n\" -gt 500 ] && break; sleep 0.1; done; kill -9 $pid; wait $pid; exit 0");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  ASSERT_TRUE(fs::exists(run / "servo.csv"));
+  // Everything written up to the kill is there in whole rows: the report reads it.
+  r = RunCli("report " + ShellQuote(run.string()) + " --from 3 --json --out " +
+             ShellQuote((dir.path() / "report.html").string()));
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto rep = nlohmann::json::parse(r.out);
+  EXPECT_TRUE(std::isfinite(rep["tip_to_target_rms_mm"].get<double>()));
+  const std::vector<std::string> servo = Lines(run / "servo.csv");
+  EXPECT_GT(servo.size(), 500u);
+}
+
 TEST(LiveProcesses, BadSourcesAreClearErrors) {
   auto r = RunCli("track --duration 1");
   EXPECT_NE(r.rc, 0);

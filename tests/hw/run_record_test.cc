@@ -4,6 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -172,6 +176,46 @@ TEST(RunRecord, BadFilesNameTheFileLineAndColumn) {
   fs::remove(targets);
   ExpectContains(InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); }),
                  "targets.csv: not found");
+}
+
+// kill -9 while writing: every row added before the kill is on disk and the RUN directory
+// reads back whole (nothing lost but the row in flight; here none is in flight).
+TEST(RunWriter, AProcessKilledWhileWritingLosesNoRowAlreadyAdded) {
+  const TempDir dir("run_kill9", true);
+  const fs::path run = dir.path() / "run";
+  constexpr int kRows = 137;
+  int ready[2];
+  ASSERT_EQ(::pipe(ready), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {  // the writer: adds its rows, says so, then waits to be killed
+    ::close(ready[0]);
+    hw::RunWriter w(run, {});
+    for (int i = 0; i < kRows; ++i) {
+      const double t = 0.04 * i;
+      w.AddTarget({t, t + 0.05, t + 0.06, true, Eigen::Vector3d(1, 2, 3 + 0.01 * i), Eigen::Vector3d(0, 0, 1),
+                   Eigen::Vector3d(0, 0, 1), 0.9});
+      w.AddServo({t, "following", 0.1 * i, 0.2, 0.3, 0});
+      w.AddLatency({t + 0.05, t + 0.055});
+    }
+    const char byte = 1;
+    if (::write(ready[1], &byte, 1) != 1) ::_exit(2);
+    for (;;) ::pause();
+  }
+  ::close(ready[1]);
+  char byte = 0;
+  ASSERT_EQ(::read(ready[0], &byte, 1), 1);
+  ::close(ready[0]);
+  ASSERT_EQ(::kill(child, SIGKILL), 0);
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFSIGNALED(status));
+  const hw::RunRecord r = hw::ReadRunRecord(run);
+  ASSERT_EQ(r.targets.size(), static_cast<std::size_t>(kRows));
+  ASSERT_EQ(r.servo.size(), static_cast<std::size_t>(kRows));
+  ASSERT_EQ(r.latency.size(), static_cast<std::size_t>(kRows));
+  EXPECT_DOUBLE_EQ(r.targets.back().target_mm.z(), 3 + 0.01 * (kRows - 1));
+  EXPECT_DOUBLE_EQ(r.servo.back().setpoint_mm, 0.1 * (kRows - 1));
 }
 
 }  // namespace
