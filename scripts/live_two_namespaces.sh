@@ -4,8 +4,12 @@
 # joined by a veth pair, UDP only (--no-shm: namespaces share /dev/shm, hosts do not), with
 # interface whitelists and unicast initial peers (no multicast needed). The tracker's
 # simulated scanner follows the tip the servo reports over the link, so the loop closes
-# across the "hosts". Prints both JSON summaries. Optional netem on the veth (both ways),
-# e.g. NETEM="delay 2ms 1ms loss 1%". Needs root and iproute2; removes what it made on exit.
+# across the "hosts". Prints both JSON summaries. Optional impairment of the veth (both
+# ways): NETEM="delay 2ms 1ms loss 1%" (tc netem, where the kernel has it), or
+# TBF="rate 120kbit burst 2kb latency 20ms" (a token-bucket bottleneck: packets over the
+# rate queue up to `latency`, then drop — delay and loss from congestion; tc tbf is in
+# kernels without netem). With OUT=DIR the summaries are also left in DIR
+# (track.json, servo.json). Needs root and iproute2; removes what it made on exit.
 # Usage: scripts/live_two_namespaces.sh [build/bin/echoservo] [track seconds]
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -33,6 +37,10 @@ if [[ -n "${NETEM:-}" ]]; then
   ip netns exec "$a" tc qdisc add dev es_live_va root netem $NETEM
   ip netns exec "$b" tc qdisc add dev es_live_vb root netem $NETEM
 fi
+if [[ -n "${TBF:-}" ]]; then
+  ip netns exec "$a" tc qdisc add dev es_live_va root tbf $TBF
+  ip netns exec "$b" tc qdisc add dev es_live_vb root tbf $TBF
+fi
 
 out=$(mktemp -d)
 link_b="--dds-domain 7 --no-shm --interface 10.78.0.2 --peer 10.78.0.1"
@@ -43,8 +51,13 @@ servo_pid=$!
 ip netns exec "$a" timeout $((seconds + 30)) "$cli" track --sim $link_a --duration "$seconds" --json \
   >"$out/track.json" 2>"$out/track.err"
 wait "$servo_pid"
+if [[ -n "${NETEM:-}${TBF:-}" ]]; then
+  echo "== veth es_live_va (namespace $a) queue: $(ip netns exec "$a" tc -s qdisc show dev es_live_va | tr '\n' ' ')"
+  echo "== veth es_live_vb (namespace $b) queue: $(ip netns exec "$b" tc -s qdisc show dev es_live_vb | tr '\n' ' ')"
+fi
 echo "== track (namespace $a)"
 cat "$out/track.json"
 echo "== servo (namespace $b)"
 cat "$out/servo.json"
+if [[ -n "${OUT:-}" ]]; then cp "$out"/*.json "$OUT"/; fi
 rm -rf "$out"

@@ -17,6 +17,7 @@ packages=(
   zlib1g-dev
   xvfb
   xauth
+  iproute2
 )
 
 missing=()

@@ -8,7 +8,10 @@
 // times from the configuration).
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -148,6 +151,31 @@ TEST(LiveProcesses, ADemoKilledMidRunLeavesARunItsReportReads) {
   EXPECT_TRUE(std::isfinite(rep["tip_to_target_rms_mm"].get<double>()));
   const std::vector<std::string> servo = Lines(run / "servo.csv");
   EXPECT_GT(servo.size(), 500u);
+}
+
+// Two network namespaces joined by a veth whose both ends go through a token-bucket
+// bottleneck (tc tbf: packets over the rate queue, then drop — delay and loss), the servo
+// in one and the tracker in the other (scripts/live_two_namespaces.sh). Needs root and
+// network namespaces; skipped where the host has neither.
+TEST(LiveProcesses, ServoAndTrackerInTwoNamespacesThroughAnImpairedLink) {
+  if (::geteuid() != 0 || RunShell("ip netns add es_probe && ip netns del es_probe").rc != 0)
+    GTEST_SKIP() << "needs root and network namespaces";
+  const testing::TempDir dir("live_netns", true);
+  const std::string script = ShellQuote(std::string(ECHOSERVO_SOURCE_DIR) + "/scripts/live_two_namespaces.sh");
+  const auto r = RunShell("TBF='rate 400kbit burst 4kb latency 15ms' OUT=" + ShellQuote(dir.path().string()) +
+                          " bash " + script + " " + kCli + " 10");
+  ASSERT_EQ(r.rc, 0) << r.out << r.err;
+  const auto t = ParseFile(dir.path() / "track.json"), s = ParseFile(dir.path() / "servo.json");
+  ASSERT_FALSE(t.is_discarded());
+  ASSERT_FALSE(s.is_discarded());
+  std::printf("impaired link: %s\n", r.out.substr(0, r.out.find("== track")).c_str());
+  std::printf("track published %d, servo accepted %d, limit violations %d, final mode %s\n",
+              t["published"].get<int>(), s["estimates_accepted"].get<int>(), s["limit_violations"].get<int>(),
+              s["final_mode"].get<std::string>().c_str());
+  EXPECT_GT(s["estimates_accepted"].get<int>(), 20);
+  EXPECT_EQ(s["limit_violations"].get<int>(), 0);
+  // The tracker ends 4 s before the servo: the servo ends in its safe state.
+  EXPECT_EQ(s["final_mode"], "retracting") << s.dump();
 }
 
 TEST(LiveProcesses, BadSourcesAreClearErrors) {
