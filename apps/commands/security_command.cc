@@ -71,7 +71,8 @@ void AddSecurityCommand(CLI::App& app) {
       "and permissions into DIR");
   init->add_option("dir", a->dir, "credential directory (created)")->required();
   init->add_option("--participants", a->init.participants,
-                   "participants (roles: tracker, servo, operator, monitor)")
+                   "participants, comma-separated (roles: tracker, servo, operator, monitor; "
+                   "default: all four)")
       ->delimiter(',');
   init->add_option("--days", a->init.validity_days,
                    "validity of the certificates and permissions, days")
