@@ -5,7 +5,10 @@
 // Fast DDS's default transports (shared memory on one host), and in a thread of this
 // process (intra-process delivery is off in link::Participant: a second participant of the
 // same process, over the same transports), for reference.
-// Binary: build/bin/echoservo_dds_bench [--samples N] [--rate HZ] [--json].
+// Binary: build/bin/echoservo_dds_bench [--samples N] [--rate HZ] [--secure DIR] [--json].
+// With --secure DIR (`echoservo security init DIR`), each run is repeated with DDS-Security
+// (the publisher as DIR's "tracker", the subscriber as its "servo": authenticated,
+// access-controlled, encrypted), right after its non-secure baseline in the same session.
 // Across two hosts (or network namespaces): run `--subscriber` on one and `--publisher`
 // on the other, each with `--domain D --transport default` and, where multicast does not
 // pass, `--peer IP` (the other host) and `--interface IP` (this host's address); `--no-shm`
@@ -27,6 +30,7 @@
 
 #include "link/clock.h"
 #include "link/dds_link.h"
+#include "link/security.h"
 
 extern char** environ;
 
@@ -45,6 +49,8 @@ struct Args {
   std::vector<std::string> peers;
   std::vector<std::string> interfaces;
   bool shared_memory = true;
+  std::string secure_dir;   // --secure DIR
+  bool use_secure = false;  // this run (or this child) with DDS-Security
 };
 
 Args Parse(int argc, char** argv) {
@@ -63,12 +69,18 @@ Args Parse(int argc, char** argv) {
     else if (arg == "--peer") a.peers.push_back(value());
     else if (arg == "--interface") a.interfaces.push_back(value());
     else if (arg == "--no-shm") a.shared_memory = false;
+    else if (arg == "--secure") {
+      a.secure_dir = value();
+      a.use_secure = true;
+    }
   }
   return a;
 }
 
-dl::ParticipantOptions Options(const Args& a, const char* name) {
+// `role`: the participant's identity in --secure DIR (publisher: tracker, subscriber: servo).
+dl::ParticipantOptions Options(const Args& a, const char* name, const char* role) {
   dl::ParticipantOptions o;
+  if (a.use_secure) o.properties = dl::SecurityProperties(dl::CheckSecurityDir(a.secure_dir, role));
   o.domain_id = a.domain;
   o.name = name;
   o.loopback_only = a.loopback;
@@ -79,11 +91,11 @@ dl::ParticipantOptions Options(const Args& a, const char* name) {
 }
 
 // Publishes `samples` estimates at `rate_hz` once a subscriber matched (and 0.5 s more,
-// so that the subscriber's side has matched too).
-void Publish(dl::Participant& participant, int samples, double rate_hz) {
+// 1 s with DDS-Security, so that the subscriber's side has matched too).
+void Publish(dl::Participant& participant, int samples, double rate_hz, bool secure) {
   dl::TargetPublisher pub(participant);
   if (!pub.WaitForSubscribers(1, 30.0)) return;
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  std::this_thread::sleep_for(std::chrono::milliseconds(secure ? 1000 : 500));  // the handshake's tail
   dl::TargetEstimateSample s;
   s.axis = Eigen::Vector3d::UnitZ();
   s.motion.cos_mm = {3.0, -0.5, 0.2, 0.1};
@@ -121,7 +133,7 @@ double Percentile(const std::vector<double>& sorted, double q) {
 // waits for it) and summarises the latencies.
 template <class Start, class Join>
 Result Measure(const std::string& name, const Args& a, Start start, Join join) {
-  dl::Participant participant(Options(a, "dds_bench_subscriber"));
+  dl::Participant participant(Options(a, "dds_bench_subscriber", "servo"));
   std::mutex mu;
   std::vector<double> latency_us;
   latency_us.reserve(static_cast<std::size_t>(a.samples));
@@ -165,6 +177,10 @@ Result TwoProcesses(const char* self, Args a, bool loopback) {
                                      std::to_string(a.samples),
                                      "--rate",
                                      std::to_string(a.rate_hz)};
+    if (a.use_secure) {
+      args.push_back("--secure");
+      args.push_back(a.secure_dir);
+    }
     std::vector<char*> argv;
     for (std::string& s : args) argv.push_back(s.data());
     argv.push_back(nullptr);
@@ -173,8 +189,9 @@ Result TwoProcesses(const char* self, Args a, bool loopback) {
   const auto join = [&](const auto&) {
     if (pid > 0) waitpid(pid, nullptr, 0);
   };
-  return Measure(std::string("two processes, ") + (loopback ? "UDP loopback only" : "default transports (SHM)"), a,
-                 start, join);
+  return Measure(std::string("two processes, ") + (loopback ? "UDP loopback only" : "default transports (SHM)") +
+                     (a.use_secure ? ", DDS-Security" : ""),
+                 a, start, join);
 }
 
 Result InProcess(Args a) {
@@ -182,11 +199,11 @@ Result InProcess(Args a) {
   std::thread publisher;
   std::unique_ptr<dl::Participant> participant;
   const auto start = [&] {
-    participant = std::make_unique<dl::Participant>(Options(a, "dds_bench_publisher"));
-    publisher = std::thread([&] { Publish(*participant, a.samples, a.rate_hz); });
+    participant = std::make_unique<dl::Participant>(Options(a, "dds_bench_publisher", "tracker"));
+    publisher = std::thread([&] { Publish(*participant, a.samples, a.rate_hz, a.use_secure); });
   };
   const auto join = [&](const auto&) { publisher.join(); };
-  return Measure("one process, two participants", a, start, join);
+  return Measure(std::string("one process, two participants") + (a.use_secure ? ", DDS-Security" : ""), a, start, join);
 }
 
 // The other host publishes: wait for all samples, or 2 s without a new one after the
@@ -226,9 +243,9 @@ void Print(const Args& a, const std::vector<Result>& results) {
   }
   std::printf("DDS one-way latency, %s, %d samples at %g Hz\n", std::string(dl::kTargetTopic).c_str(), a.samples,
               a.rate_hz);
-  std::printf("%-50s %9s %6s %9s %9s %9s %9s\n", "run", "received", "lost", "p50 µs", "p90 µs", "p99 µs", "max µs");
+  std::printf("%-64s %9s %6s %9s %9s %9s %9s\n", "run", "received", "lost", "p50 µs", "p90 µs", "p99 µs", "max µs");
   for (const Result& r : results) {
-    std::printf("%-50s %9zu %6llu %9.1f %9.1f %9.1f %9.1f\n", r.name.c_str(), r.received,
+    std::printf("%-64s %9zu %6llu %9.1f %9.1f %9.1f %9.1f\n", r.name.c_str(), r.received,
                 static_cast<unsigned long long>(r.lost), r.p50_us, r.p90_us, r.p99_us, r.max_us);
   }
 }
@@ -238,14 +255,22 @@ void Print(const Args& a, const std::vector<Result>& results) {
 int main(int argc, char** argv) {
   const Args a = Parse(argc, argv);
   if (a.publisher) {
-    dl::Participant participant(Options(a, "dds_bench_publisher"));
-    Publish(participant, a.samples, a.rate_hz);
+    dl::Participant participant(Options(a, "dds_bench_publisher", "tracker"));
+    Publish(participant, a.samples, a.rate_hz, a.use_secure);
     return 0;
   }
   if (a.subscriber) {
     Print(a, {OtherHost(a)});
     return 0;
   }
-  Print(a, {TwoProcesses(argv[0], a, true), TwoProcesses(argv[0], a, false), InProcess(a)});
+  if (!a.use_secure) {
+    Print(a, {TwoProcesses(argv[0], a, true), TwoProcesses(argv[0], a, false), InProcess(a)});
+    return 0;
+  }
+  // Each run without, then with DDS-Security, in this session.
+  Args plain = a;
+  plain.use_secure = false;
+  Print(a, {TwoProcesses(argv[0], plain, true), TwoProcesses(argv[0], a, true), TwoProcesses(argv[0], plain, false),
+            TwoProcesses(argv[0], a, false), InProcess(plain), InProcess(a)});
   return 0;
 }

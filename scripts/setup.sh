@@ -14,6 +14,7 @@ packages=(
   libopencv-dev
   libtbb-dev
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
+  libssl-dev
   zlib1g-dev
   xvfb
   xauth

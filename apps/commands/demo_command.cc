@@ -135,6 +135,8 @@ void AddLiveCommands(CLI::App& app) {
   demo->add_option("--guidewire-od", o.guidewire_od_mm, "guidewire outer diameter, mm (seed water tank: 1.50)");
   demo->add_option("--dds-domain", o.dds_domain, "DDS domain of the tracker → servo link (loopback only)")
       ->check(CLI::Range(0, 232));
+  demo->add_option("--secure", o.secure_dir,
+                  "DDS-Security: the credential directory of `echoservo security init DIR` (tracker and servo identities)");
   demo->add_option("--out", args->out, "write the run (RUN directory: targets, servo, latency, EM log, truth)");
   demo->add_flag("--save-volumes", o.save_volumes,
                  "also write the processed volumes to RUN/volumes.igs.mha for `track --replay` (≤ 20 s runs)");
@@ -146,6 +148,7 @@ void AddLiveCommands(CLI::App& app) {
   AddServoCommand(app);
   AddOperatorCommand(app);
   AddFaultsCommand(app);
+  AddSecurityCommand(app);
 }
 
 }  // namespace echoservo::apps

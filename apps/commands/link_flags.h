@@ -1,9 +1,12 @@
 // The DDS link's command-line flags, shared by `track`, `servo` and `command`: domain,
-// loopback-only mode, interfaces and unicast peers for two hosts, shared memory off
-// (link/dds_link.h ParticipantOptions; docs/dds.md).
+// loopback-only mode, interfaces and unicast peers for two hosts, shared memory off, and
+// DDS-Security credentials (--secure DIR from `echoservo security init`, the identity
+// being the command's role unless --secure-identity names another) (link/dds_link.h
+// ParticipantOptions, link/security.h; docs/dds.md).
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace CLI {
@@ -21,11 +24,17 @@ struct LinkFlags {
   std::vector<std::string> interfaces;
   std::vector<std::string> peers;
   bool no_shm = false;
+  std::string secure_dir;       // empty: no DDS-Security
+  std::string secure_identity;  // empty: the command's role
 };
 
 void AddLinkFlags(CLI::App& cmd, LinkFlags& flags);
-// Throws std::invalid_argument naming the flag (ParticipantOptions::Validate).
-link::ParticipantOptions ToParticipantOptions(const LinkFlags& flags, const std::string& name);
+// `role` is the participant's identity in a --secure directory (tracker, servo, operator).
+// Throws std::invalid_argument naming the flag (ParticipantOptions::Validate) or, for
+// --secure, the credential file and what is wrong with it (link::CheckSecurityDir).
+link::ParticipantOptions ToParticipantOptions(const LinkFlags& flags, const std::string& name, const std::string& role);
+// The dds.sec.* properties of `role` in `dir` (--secure), errors prefixed with the flag.
+std::vector<std::pair<std::string, std::string>> SecureProperties(const std::string& dir, const std::string& role);
 
 // SIGINT/SIGTERM set a flag a command's loop polls (a clean stop: the servo retracts
 // nothing by itself, it stops and its last state goes out).

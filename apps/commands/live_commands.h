@@ -1,8 +1,9 @@
 // Registration of the live-pipeline commands: `demo` (apps/commands/demo_command.cc, the
 // closed-loop simulated scanner → tracker → servo run, apps/live/demo_run.h), and the
 // separate processes `track` (track_command.cc), `servo` (servo_command.cc) and
-// `command` (servo_command_tool.cc, operator commands over DDS), and `faults`
-// (faults_command.cc, the servo's fault-injection scenarios).
+// `command` (servo_command_tool.cc, operator commands over DDS), `security`
+// (security_command.cc: DDS-Security credentials for them) and `faults` (faults_command.cc,
+// the servo's fault-injection scenarios).
 #pragma once
 
 namespace CLI {
@@ -11,10 +12,11 @@ class App;
 
 namespace echoservo::apps {
 
-void AddLiveCommands(CLI::App& app);  // all four
+void AddLiveCommands(CLI::App& app);  // all five
 void AddTrackCommand(CLI::App& app);
 void AddServoCommand(CLI::App& app);
 void AddOperatorCommand(CLI::App& app);
 void AddFaultsCommand(CLI::App& app);
+void AddSecurityCommand(CLI::App& app);
 
 }  // namespace echoservo::apps

@@ -56,7 +56,7 @@ void RunServo(const ServoArgs& a) {
   so.auto_enable = a.auto_enable;
   so.state_rate_hz = a.state_rate_hz;
   so.Validate();
-  link::Participant participant(ToParticipantOptions(a.link, "echoservo_servo"));
+  link::Participant participant(ToParticipantOptions(a.link, "echoservo_servo", "servo"));
   live::SimCatheter catheter = live::MakeSimCatheter(a.sheath_id_mm, a.guidewire_od_mm, a.seed);
   const live::PipelineClock clock(0.05);
   so.link_offset_s = clock.link_offset_s();

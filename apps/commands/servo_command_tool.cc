@@ -1,7 +1,9 @@
 // `echoservo command ACTION [--standoff MM]`: an operator's command to the servo over DDS
 // (enable, disable, stop, standoff), published reliably, then the servo's catheter state
 // is awaited until it shows the command applied (enable: tracking or holding; disable and
-// stop: stopped; standoff: the new standoff) or --wait s pass (exit status 1).
+// stop: stopped; standoff: the new standoff) or --wait s pass (exit status 1). With
+// --secure DIR it is the "operator" identity there (a servo started with --secure only
+// matches participants whose credentials its CA issued and whose permissions allow it).
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -51,10 +53,22 @@ void RunCommand(const CommandArgs& a) {
     throw std::invalid_argument("command " + a.action + ": --standoff MM is required");
   c.standoff_mm = needs_standoff ? a.standoff_mm : 0.0;
 
-  link::Participant participant(ToParticipantOptions(a.link, "echoservo_operator"));
-  link::CommandPublisher pub(participant);
+  link::Participant participant(ToParticipantOptions(a.link, "echoservo_operator", "operator"));
+  const bool secure = !a.link.secure_dir.empty();
+  const std::string identity = a.link.secure_identity.empty() ? "operator" : a.link.secure_identity;
+  std::unique_ptr<link::CommandPublisher> pub_owner;
+  try {
+    pub_owner = std::make_unique<link::CommandPublisher>(participant);
+  } catch (const std::runtime_error& e) {
+    if (!secure) throw;
+    throw std::runtime_error("command: DDS refused a servo_command writer: the permissions of identity '" + identity +
+                             "' in " + a.link.secure_dir + " do not grant publishing it (" + e.what() + ")");
+  }
+  link::CommandPublisher& pub = *pub_owner;
   link::StateSubscriber state(participant);
-  if (!pub.WaitForSubscribers(1, a.wait_s)) throw std::runtime_error("command: no servo on DDS domain " + std::to_string(a.link.domain));
+  if (!pub.WaitForSubscribers(1, a.wait_s))
+    throw std::runtime_error("command: no servo on DDS domain " + std::to_string(a.link.domain) +
+                             (secure ? " that accepts these credentials" : "") + " within --wait");
   c.stamp_s = link::NowS();
   c.sequence_number = static_cast<std::uint64_t>(c.stamp_s * 1e6);
   if (!pub.Publish(c)) throw std::runtime_error("command: DDS refused the write");

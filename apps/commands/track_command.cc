@@ -97,7 +97,7 @@ void RunTrack(const TrackArgs& a) {
   std::unique_ptr<link::Participant> participant;
   std::unique_ptr<link::TargetPublisher> publisher;
   if (!replay) {
-    participant = std::make_unique<link::Participant>(ToParticipantOptions(a.link, "echoservo_tracker"));
+    participant = std::make_unique<link::Participant>(ToParticipantOptions(a.link, "echoservo_tracker", "tracker"));
     publisher = std::make_unique<link::TargetPublisher>(*participant);
   }
   InstallStopSignals();

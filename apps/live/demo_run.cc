@@ -8,7 +8,10 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
+#include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "apps/live/delayed_scanner.h"
@@ -22,6 +25,7 @@
 #include "hw/sim_em_tracker.h"
 #include "imaging/io/plus_sequence.h"
 #include "link/dds_link.h"
+#include "link/security.h"
 
 namespace echoservo::live {
 namespace {
@@ -61,6 +65,15 @@ std::string RowMajor(const Eigen::Isometry3d& t) {
   return out;
 }
 
+// The dds.sec.* properties of `role` in --secure DIR (errors name the flag and the file).
+std::vector<std::pair<std::string, std::string>> SecureProperties(const std::string& dir, const std::string& role) {
+  try {
+    return link::SecurityProperties(link::CheckSecurityDir(dir, role));
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("demo: --secure " + dir + " (identity '" + role + "'): " + e.what());
+  }
+}
+
 }  // namespace
 
 void DemoOptions::Validate() const {
@@ -79,6 +92,10 @@ void DemoOptions::Validate() const {
   if (!(dds_domain >= 0 && dds_domain <= 232)) bad("--dds-domain", "must be in [0, 232]");
   if (!(guidewire_od_mm > 0 && sheath_id_mm > guidewire_od_mm && sheath_id_mm <= 5))
     bad("--sheath-id/--guidewire-od", "must satisfy 0 < guidewire < sheath ≤ 5 mm");
+  if (!secure_dir.empty()) {  // before the scene is built: a bad directory fails at once
+    SecureProperties(secure_dir, "tracker");
+    SecureProperties(secure_dir, "servo");
+  }
 }
 
 DemoResult RunDemo(const DemoOptions& o) {
@@ -107,8 +124,10 @@ DemoResult RunDemo(const DemoOptions& o) {
   po.domain_id = o.dds_domain;
   po.loopback_only = true;
   po.name = "echoservo_demo_tracker";
+  if (!o.secure_dir.empty()) po.properties = SecureProperties(o.secure_dir, "tracker");
   link::Participant tracker_participant(po);
   po.name = "echoservo_demo_servo";
+  if (!o.secure_dir.empty()) po.properties = SecureProperties(o.secure_dir, "servo");
   link::Participant servo_participant(po);
   link::TargetPublisher target_pub(tracker_participant);
 

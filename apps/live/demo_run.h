@@ -49,6 +49,9 @@ struct DemoOptions {
   double sheath_id_mm = 1.59;     // the seed's water-tank catheter (its two bends)
   double guidewire_od_mm = 1.50;
   int dds_domain = 42;            // the DDS domain of the tracker → servo link (loopback only)
+  // DDS-Security: a credential directory of `echoservo security init` (link/security.h);
+  // the tracker's participant uses its "tracker" identity, the servo's its "servo".
+  std::string secure_dir;
   std::function<void(const std::string&)> log;  // progress lines; may be null
   // Throws std::invalid_argument naming the option.
   void Validate() const;
