@@ -13,22 +13,8 @@ bench=$(realpath "${1:-build/bin/echoservo_dds_bench}")
 samples=${2:-2000}
 a=es_dds_a b=es_dds_b
 
-cleanup() {
-  ip netns del "$a" 2>/dev/null || true
-  ip netns del "$b" 2>/dev/null || true
-}
-trap cleanup EXIT
-cleanup
-ip netns add "$a"
-ip netns add "$b"
-ip link add es_dds_va type veth peer name es_dds_vb
-ip link set es_dds_va netns "$a"
-ip link set es_dds_vb netns "$b"
-ip -n "$a" addr add 10.77.0.1/24 dev es_dds_va
-ip -n "$b" addr add 10.77.0.2/24 dev es_dds_vb
-for ns in "$a" "$b"; do ip -n "$ns" link set lo up; done
-ip -n "$a" link set es_dds_va up
-ip -n "$b" link set es_dds_vb up
+source scripts/lib/two_namespaces.sh
+two_namespaces "$a" "$b" es_dds_va es_dds_vb 10.77.0
 
 tx_bytes() { ip -n "$a" -s link show es_dds_va | awk 'f{print $1; exit} /TX:/{f=1}'; }
 

@@ -17,22 +17,8 @@ cli=$(realpath "${1:-build/bin/echoservo}")
 seconds=${2:-10}
 a=es_live_a b=es_live_b
 
-cleanup() {
-  ip netns del "$a" 2>/dev/null || true
-  ip netns del "$b" 2>/dev/null || true
-}
-trap cleanup EXIT
-cleanup
-ip netns add "$a"
-ip netns add "$b"
-ip link add es_live_va type veth peer name es_live_vb
-ip link set es_live_va netns "$a"
-ip link set es_live_vb netns "$b"
-ip -n "$a" addr add 10.78.0.1/24 dev es_live_va
-ip -n "$b" addr add 10.78.0.2/24 dev es_live_vb
-for ns in "$a" "$b"; do ip -n "$ns" link set lo up; done
-ip -n "$a" link set es_live_va up
-ip -n "$b" link set es_live_vb up
+source scripts/lib/two_namespaces.sh
+two_namespaces "$a" "$b" es_live_va es_live_vb 10.78.0
 if [[ -n "${NETEM:-}" ]]; then
   ip netns exec "$a" tc qdisc add dev es_live_va root netem $NETEM
   ip netns exec "$b" tc qdisc add dev es_live_vb root netem $NETEM
