@@ -122,7 +122,8 @@ std::vector<std::string> AuroraSensors(const std::vector<std::string_view>& name
   std::vector<std::string> sensors;
   for (std::size_t s = 0; s < rest / kAuroraSensorColumns; ++s) {
     const std::size_t first = kAuroraTimeColumns + s * kAuroraSensorColumns;
-    const std::string suffix(names[first].substr(1));
+    // An empty column name has no sensor letter (and no substr(1)): reported below.
+    const std::string suffix(names[first].empty() ? std::string_view{} : names[first].substr(1));
     for (std::size_t k = 0; k < kPrefix.size(); ++k) {
       const std::string expected = kPrefix[k] + suffix;
       if (suffix.empty() || names[first + k] != expected) {

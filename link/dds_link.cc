@@ -33,6 +33,7 @@
 #include "echoservo_msgs/msg/TargetEstimatePubSubTypes.h"
 #include "link/clock.h"
 #include "link/message_conversion.h"
+#include "msg/checked_pubsub_type.h"
 
 namespace echoservo::link {
 
@@ -96,7 +97,8 @@ struct TopicTraits;
 template <>
 struct TopicTraits<TargetEstimateSample> {
   using Message = echoservo_msgs::msg::TargetEstimate;
-  using Type = echoservo_msgs::msg::TargetEstimatePubSubType;
+  // never throws on a malformed payload (msg/checked_pubsub_type.h)
+  using Type = echoservo::msg::CheckedPubSubType<echoservo_msgs::msg::TargetEstimatePubSubType>;
   static constexpr std::string_view kName = kTargetTopic;
   // A stream: only the newest estimate matters, a lost one is replaced 20+ ms later.
   static constexpr TopicQos kQos{false, false, 1, 4, true};
@@ -105,7 +107,8 @@ struct TopicTraits<TargetEstimateSample> {
 template <>
 struct TopicTraits<CatheterStateSample> {
   using Message = echoservo_msgs::msg::CatheterState;
-  using Type = echoservo_msgs::msg::CatheterStatePubSubType;
+  // never throws on a malformed payload (msg/checked_pubsub_type.h)
+  using Type = echoservo::msg::CheckedPubSubType<echoservo_msgs::msg::CatheterStatePubSubType>;
   static constexpr std::string_view kName = kStateTopic;
   // Mode and fault changes must arrive; a late monitor gets the newest state at once.
   static constexpr TopicQos kQos{true, true, 1, 1, true};
@@ -114,7 +117,8 @@ struct TopicTraits<CatheterStateSample> {
 template <>
 struct TopicTraits<ServoCommandSample> {
   using Message = echoservo_msgs::msg::ServoCommand;
-  using Type = echoservo_msgs::msg::ServoCommandPubSubType;
+  // never throws on a malformed payload (msg/checked_pubsub_type.h)
+  using Type = echoservo::msg::CheckedPubSubType<echoservo_msgs::msg::ServoCommandPubSubType>;
   static constexpr std::string_view kName = kCommandTopic;
   // Every command of a burst (enable, standoff, stop) arrives, in order; no lease so
   // that any ROS 2 publisher matches.

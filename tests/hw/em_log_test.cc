@@ -170,6 +170,18 @@ TEST(AuroraLog, BadRowsNameTheFileLineAndColumn) {
   ExpectContains(msg, ": line 5: column 7 of the Aurora header is \"Yq\"; expected 'Ya'");
 }
 
+// Found by fuzz_em_log (tests/fuzz/corpus/em_log/regression-aurora-empty-sensor-column): an
+// empty first column of a sensor (",,") used to escape as std::out_of_range from
+// string_view::substr instead of the reader's std::invalid_argument.
+TEST(AuroraLog, EmptySensorColumnNameIsAHeaderError) {
+  const TempDir dir("em_log");
+  std::string header = ReadLines(kAurora)[4];
+  header.replace(header.find("Xd"), 2, "");
+  const fs::path p = AuroraWith(dir, 5, header);
+  const std::string msg = InvalidArgumentMessage([&] { hw::ReadAuroraEmLog(p, Sensor("a")); });
+  ExpectContains(msg, ": line 5: column 27 of the Aurora header is \"\"; expected 'Xa'");
+}
+
 TEST(PlusLog, WaterTankTrackerBufferHasThreeToolsAt39Hz) {
   const fs::path file = kPlus / "WaterTankBottomTranslationTrackerBuffer-trimmed.igs.mha";
   const std::string msg =

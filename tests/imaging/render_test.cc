@@ -281,7 +281,17 @@ TEST(RenderCli, ThreeDUnderXvfb) {
   // in ./.Xauthority by default, shared by every test started in this directory, and two
   // -a starts can race for the same number. Under load Xvfb can also be slow to accept
   // clients, so a failure to open the display is retried.
-  const std::string args = std::string(ECHOSERVO_CLI) +
+#if defined(__SANITIZE_ADDRESS__)
+  // Sanitizer build only: no leak check in this process. At exit LeakSanitizer reports
+  // ~240 bytes allocated from a module that is no longer mapped (the OpenGL driver that
+  // libGLX dlopens and dlcloses under Xvfb; echoservo itself dlopens nothing), so the leak
+  // cannot be ours nor be suppressed by name. Memory errors are still checked
+  // (docs/reliability.md, "Sanitizers and fuzzing").
+  const std::string env = "env ASAN_OPTIONS=\"${ASAN_OPTIONS}:detect_leaks=0\" ";
+#else
+  const std::string env;
+#endif
+  const std::string args = env + std::string(ECHOSERVO_CLI) +
                            " render --phantom --3d --volume-rendering --width 640 --height 480"
                            " --tip 14,12,30 --target 17,10,38 --axis 4,5,6,10,7,24 --out " +
                            ShellQuote(png.string());

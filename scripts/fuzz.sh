@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets with clang (-DECHOSERVO_FUZZ=ON, ASan + UBSan) into
+# build-fuzz/ and runs each from its seed corpus (tests/fuzz/corpus/<name>) for a bounded
+# time. Usage: scripts/fuzz.sh [SECONDS_PER_TARGET (default 25)] [TARGET...]
+# New inputs go to build-fuzz/corpus/<name> (the committed seeds are only read); a crash
+# leaves build-fuzz/artifacts/<name>/crash-* and fails the script. Longer runs and the
+# documented 10^6-execution run: docs/reliability.md "Sanitizers and fuzzing".
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+source scripts/sanitizer_env.sh
+# The targets write each input to a scratch file: keep those in memory when possible.
+if [ -z "${TMPDIR:-}" ] && [ -d /dev/shm ] && [ -w /dev/shm ]; then export TMPDIR=/dev/shm; fi
+
+seconds="${1:-25}"
+shift || true
+targets=("$@")
+if [ "${#targets[@]}" -eq 0 ]; then
+  targets=(igtl_message plus_sequence volume_io em_log trial_io dds_samples)
+fi
+
+CC="${CC:-clang-14}" CXX="${CXX:-clang++-14}" cmake -S . -B build-fuzz -G Ninja \
+  -DCMAKE_BUILD_TYPE=Release -DECHOSERVO_FUZZ=ON -DECHOSERVO_BUILD_TESTS=OFF \
+  -DECHOSERVO_BUILD_BENCH=OFF
+cmake --build build-fuzz -j2 --target fuzz_all
+
+status=0
+for t in "${targets[@]}"; do
+  mkdir -p "build-fuzz/corpus/$t" "build-fuzz/artifacts/$t"
+  echo "fuzz: fuzz_$t for ${seconds} s"
+  if ! build-fuzz/bin/fuzz_"$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+      -max_len=65536 -print_final_stats=1 -artifact_prefix="build-fuzz/artifacts/$t/" \
+      "build-fuzz/corpus/$t" "tests/fuzz/corpus/$t" 2> "build-fuzz/fuzz_$t.log"; then
+    echo "fuzz: fuzz_$t FAILED (build-fuzz/fuzz_$t.log, build-fuzz/artifacts/$t/)" >&2
+    tail -n 60 "build-fuzz/fuzz_$t.log" >&2
+    status=1
+  else
+    grep -E '^stat::number_of_executed_units|^Done' "build-fuzz/fuzz_$t.log" || true
+  fi
+done
+exit "$status"
