@@ -36,8 +36,8 @@ link::ParticipantOptions ToParticipantOptions(const LinkFlags& flags, const std:
 // The dds.sec.* properties of `role` in `dir` (--secure), errors prefixed with the flag.
 std::vector<std::pair<std::string, std::string>> SecureProperties(const std::string& dir, const std::string& role);
 
-// SIGINT/SIGTERM set a flag a command's loop polls (a clean stop: the servo retracts
-// nothing by itself, it stops and its last state goes out).
+// SIGINT/SIGTERM set a flag that a command's loop polls, so it ends cleanly: the servo
+// leaves its loop, prints its summary and its participant leaves the domain.
 void InstallStopSignals();
 bool StopRequested();
 

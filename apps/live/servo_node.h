@@ -110,7 +110,7 @@ class ServoNode {
   double next_state_s_ = 0.0;
   std::uint64_t state_sequence_ = 0;
   std::uint32_t last_faults_ = 0;
-  std::uint64_t last_limiter_faults_ = 0, last_travel_ = 0, last_non_finite_ = 0, last_force_ = 0;
+  std::uint64_t last_travel_ = 0, last_non_finite_ = 0, last_force_ = 0;
   double last_hw_faults_ = 0.0;
   std::uint32_t pending_faults_ = 0;  // limiter/hardware events since the last state
   control::CycleRecord last_;
