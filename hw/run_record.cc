@@ -1,11 +1,6 @@
 #include "hw/run_record.h"
 
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <cmath>
-#include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -267,26 +262,7 @@ RunWriter::RunWriter(const fs::path& dir, const RunInfo& info) : dir_(dir) {
   }
 }
 
-RunWriter::~RunWriter() {
-  for (File* f : {&targets_, &servo_, &latency_, &em_, &truth_})
-    if (f->fd >= 0) ::close(f->fd);
-}
-
-namespace {
-
-// The whole of `text` in one write(2) where the kernel allows (a regular file takes it whole),
-// retrying after signals and short writes.
-void WriteAll(int fd, const std::string& text, const fs::path& path) {
-  std::size_t done = 0;
-  while (done < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) throw std::runtime_error(path.string() + ": write error: " + std::strerror(errno));
-    done += static_cast<std::size_t>(n);
-  }
-}
-
-}  // namespace
+RunWriter::~RunWriter() = default;
 
 void RunWriter::Append(File& f, double t_s, const std::string& row) {
   std::lock_guard lock(f.mutex);
@@ -296,14 +272,13 @@ void RunWriter::Append(File& f, double t_s, const std::string& row) {
                                 " s");
   }
   std::string text;
-  if (f.fd < 0) {
-    f.fd = ::open(f.path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
-    if (f.fd < 0) throw std::runtime_error(f.path.string() + ": cannot open for writing: " + std::strerror(errno));
+  if (!f.file.is_open()) {
+    f.file = AppendOnlyFile(f.path);
     text = f.header + "\n";  // the header goes out with the first row
   }
   text += row;
   text += '\n';
-  WriteAll(f.fd, text, f.path);
+  f.file.Append(text);
   f.last_t_s = t_s;
   f.any = true;
 }
@@ -371,8 +346,7 @@ void RunWriter::AddTruth(const TruthRecord& r) {
 void RunWriter::Flush() {
   for (File* f : {&targets_, &servo_, &latency_, &em_, &truth_}) {
     std::lock_guard lock(f->mutex);
-    if (f->fd >= 0 && ::fdatasync(f->fd) != 0)
-      throw std::runtime_error(f->path.string() + ": cannot sync to disk: " + std::strerror(errno));
+    f->file.SyncData();
   }
 }
 

@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "hw/durable_file.h"
 #include "hw/em_log.h"
 
 namespace echoservo::hw {
@@ -117,7 +118,7 @@ class RunWriter {
   struct File {
     std::filesystem::path path;
     std::string header;
-    int fd = -1;  // opened with the first row
+    AppendOnlyFile file;  // opened with the first row
     std::mutex mutex;
     double last_t_s = 0.0;
     bool any = false;

@@ -48,6 +48,10 @@ std::int64_t VolumeGeometry::VoxelCount() const {
   return count;
 }
 
+bool VolumeGeometry::operator==(const VolumeGeometry& o) const {
+  return dims == o.dims && spacing_mm == o.spacing_mm && origin_mm == o.origin_mm && direction == o.direction;
+}
+
 void VolumeGeometry::Validate(const std::string& where) const {
   for (int a = 0; a < 3; ++a) {
     Require(dims[a] >= 1 && dims[a] <= kMaxDim, where, std::string("dims.") + kAxis[a],

@@ -39,6 +39,8 @@ struct VolumeGeometry {
   // not finite and > 0; the origin is not finite; the direction is not finite or not
   // orthonormal within kOrthonormalTolerance (reflections, det = −1, are allowed).
   void Validate(const std::string& where = "volume geometry") const;
+  // Exactly equal dims, spacing, origin and direction.
+  bool operator==(const VolumeGeometry& other) const;
 
   // dims.x · dims.y · dims.z, computed without overflow for any int dims.
   std::int64_t VoxelCount() const;

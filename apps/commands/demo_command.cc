@@ -66,6 +66,7 @@ void RunDemoCommand(const DemoArgs& a) {
         {"missed_acquisitions", r.missed_acquisitions},
         {"tracker_errors", r.tracker_errors},
         {"volumes", r.volumes},
+        {"volumes_recorded", r.volumes_recorded},
         {"detected", r.detected},
         {"estimates_accepted", r.estimates_accepted},
         {"estimates_rejected", r.estimates_rejected},
@@ -139,7 +140,8 @@ void AddLiveCommands(CLI::App& app) {
                   "DDS-Security: the credential directory of `echoservo security init DIR` (tracker and servo identities)");
   demo->add_option("--out", args->out, "write the run (RUN directory: targets, servo, latency, EM log, truth)");
   demo->add_flag("--save-volumes", o.save_volumes,
-                 "also write the processed volumes to RUN/volumes.igs.mha for `track --replay` (≤ 20 s runs)");
+                 "also record the volumes the tracker receives to RUN/volumes.igs.mhd (+ .raw), each as it is processed, "
+                 "for `track --replay`");
   demo->add_flag("--baseline", args->baseline,
                  "then run the same demo with a zero-order hold instead of the EKF (same process) and report the ratio");
   demo->add_flag("--json", args->json, "print the figures as JSON");

@@ -11,8 +11,9 @@
 //                        recording.h) processed as fast as possible on its own timestamps,
 //                        offline (nothing published): with --out, a RUN directory whose
 //                        targets a report scores against the recorded run's EM log.
-// --out RUN writes targets.csv (and run.json; for a replay of RUN/volumes.igs.mha the
-// recorded run's heart rate, standoff and EM calibration are carried over).
+// --out RUN writes targets.csv (and run.json; for a replay of RUN/volumes.igs.mhd the
+// recorded run's heart rate, standoff and EM calibration are carried over); with
+// --save-volumes (live sources) also the received volumes, as they come (RUN/volumes.igs.mhd).
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -33,6 +34,7 @@
 #include "hw/run_record.h"
 #include "imaging/igtl/ingest.h"
 #include "imaging/io/recording.h"
+#include "imaging/io/sequence_writer.h"
 #include "link/clock.h"
 
 namespace echoservo::apps {
@@ -47,6 +49,7 @@ struct TrackArgs {
   std::string replay;
   double duration_s = 0.0;
   std::string out;
+  bool save_volumes = false;
   bool json = false;
   // EKF
   int harmonics = 8;
@@ -78,6 +81,8 @@ void RunTrack(const TrackArgs& a) {
   if (sources != 1) throw std::invalid_argument("track: give exactly one of --sim, --connect HOST:PORT, --replay FILE");
   if (a.sim && a.duration_s <= 0) throw std::invalid_argument("track --sim: --duration S is required");
   const bool replay = !a.replay.empty();
+  if (a.save_volumes && a.out.empty()) throw std::invalid_argument("track --save-volumes: needs --out RUN");
+  if (a.save_volumes && replay) throw std::invalid_argument("track --save-volumes: a replay is recorded already");
 
   live::TrackerNodeOptions to;
   to.ekf.harmonics = a.harmonics;
@@ -94,6 +99,8 @@ void RunTrack(const TrackArgs& a) {
     }
     writer = std::make_unique<hw::RunWriter>(a.out, info);
   }
+  std::unique_ptr<imaging::SequenceWriter> recorder;
+  if (a.save_volumes) recorder = std::make_unique<imaging::SequenceWriter>(fs::path(a.out) / "volumes.igs.mhd");
   std::unique_ptr<link::Participant> participant;
   std::unique_ptr<link::TargetPublisher> publisher;
   if (!replay) {
@@ -127,7 +134,7 @@ void RunTrack(const TrackArgs& a) {
   } else if (a.sim) {
     const live::PipelineClock clock(0.2);
     to.link_offset_s = clock.link_offset_s();
-    node.emplace(to, publisher.get(), writer.get());
+    node.emplace(to, publisher.get(), writer.get(), recorder.get());
     live::SimScene scene({a.rate_hz, a.heart_rate_bpm, a.target_p2p_mm, 8.0, a.seed});
     // The servo's tip moves the catheter in the scene.
     const double offset = clock.link_offset_s();
@@ -148,7 +155,7 @@ void RunTrack(const TrackArgs& a) {
     missed = scanner.missed();
     dropped = scanner.dropped();
   } else {
-    node.emplace(to, publisher.get(), writer.get());
+    node.emplace(to, publisher.get(), writer.get(), recorder.get());
     const auto colon = a.connect.rfind(':');
     if (colon == std::string::npos) throw std::invalid_argument("track --connect: expected HOST:PORT, got '" + a.connect + "'");
     imaging::openigtlink::IngestOptions io;
@@ -172,6 +179,7 @@ void RunTrack(const TrackArgs& a) {
     dropped = static_cast<std::uint64_t>(client.stats().dropped);
   }
   if (writer) writer->Flush();
+  if (recorder) recorder->SyncData();
 
   const live::TrackerStats& s = node->stats();
   if (a.json) {
@@ -181,6 +189,7 @@ void RunTrack(const TrackArgs& a) {
                                 {"errors", s.errors},
                                 {"published", s.published},
                                 {"publish_failures", s.publish_failures},
+                                {"volumes_recorded", s.recorded},
                                 {"dropped", dropped},
                                 {"missed_acquisitions", missed},
                                 {"ekf_harmonics", node->ekf().harmonics()},
@@ -206,6 +215,9 @@ void AddTrackCommand(CLI::App& app) {
   cmd->add_option("--replay", a->replay, "a recording (PLUS sequence, volume file or folder), processed offline");
   cmd->add_option("--duration", a->duration_s, "run length, s (0: until the stream ends or SIGINT)")->check(CLI::Range(0.0, 86400.0));
   cmd->add_option("--out", a->out, "write a RUN directory (targets.csv, run.json)");
+  cmd->add_flag("--save-volumes", a->save_volumes,
+                "--sim/--connect: also record the received volumes to RUN/volumes.igs.mhd (+ .raw), each as it is "
+                "processed, for --replay");
   cmd->add_option("--harmonics", a->harmonics, "EKF harmonics (0: automatic)")->check(CLI::Range(0, 12));
   cmd->add_option("--max-harmonics", a->max_harmonics, "EKF automatic harmonics up to")->check(CLI::Range(1, 12));
   cmd->add_option("--init-window", a->init_window_s, "EKF initial window, s")->check(CLI::Range(1.0, 30.0));

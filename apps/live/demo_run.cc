@@ -23,7 +23,7 @@
 #include "estimation/accuracy_report.h"
 #include "hw/run_record.h"
 #include "hw/sim_em_tracker.h"
-#include "imaging/io/plus_sequence.h"
+#include "imaging/io/sequence_writer.h"
 #include "link/dds_link.h"
 #include "link/security.h"
 
@@ -88,7 +88,6 @@ void DemoOptions::Validate() const {
   if (!(standoff_mm >= 0 && standoff_mm <= 30)) bad("--standoff", "must be in [0, 30] mm");
   if (!(metrics_start_s >= 0 && metrics_start_s < duration_s)) bad("--metrics-start", "must be in [0, duration)");
   if (save_volumes && out_dir.empty()) bad("--save-volumes", "needs --out RUN");
-  if (save_volumes && duration_s > kMaxSavedDurationS) bad("--save-volumes", "is limited to --duration ≤ 20 s (volumes are kept in memory)");
   if (!(dds_domain >= 0 && dds_domain <= 232)) bad("--dds-domain", "must be in [0, 232]");
   if (!(guidewire_od_mm > 0 && sheath_id_mm > guidewire_od_mm && sheath_id_mm <= 5))
     bad("--sheath-id/--guidewire-od", "must satisfy 0 < guidewire < sheath ≤ 5 mm");
@@ -135,7 +134,10 @@ DemoResult RunDemo(const DemoOptions& o) {
   TrackerNodeOptions to;
   to.link_offset_s = clock.link_offset_s();
   if (o.zero_order_hold) to.predictor = TargetPredictor::kZeroOrderHold;
-  TrackerNode tracker(to, &target_pub, writer.get());
+  // The volumes as the tracker receives them, each on disk before the next is taken.
+  std::unique_ptr<imaging::SequenceWriter> recorder;
+  if (o.save_volumes) recorder = std::make_unique<imaging::SequenceWriter>(o.out_dir / "volumes.igs.mhd");
+  TrackerNode tracker(to, &target_pub, writer.get(), recorder.get());
   SimCatheter catheter = MakeSimCatheter(o.sheath_id_mm, o.guidewire_od_mm, o.seed);
   hw::SimulatedCatheter& plant = *catheter.plant;
   ServoNodeOptions so;
@@ -152,7 +154,6 @@ DemoResult RunDemo(const DemoOptions& o) {
   DemoResult result;
   std::atomic<bool> stop{false};
   Arrivals arrivals;
-  std::vector<imaging::Volume> saved;  // the tracker thread's, until it is joined
   DelayedScanner scanner(scene, clock, {o.rate_hz, o.delay_min_s, o.delay_max_s, o.duration_s, o.seed});
 
   // Tracker: the newest delivered volume → detector → EKF → link.
@@ -167,10 +168,6 @@ DemoResult RunDemo(const DemoOptions& o) {
       const TrackedVolume r = tracker.Process(d->volume, d->acquired_s, arrived, [&] { return clock.Now(); });
       if (!r.error.empty()) log("tracker: " + r.error);
       if (r.published) arrivals.Add(r.sequence, arrived);
-      if (o.save_volumes) {
-        d->volume.set_frame_index(static_cast<std::int64_t>(saved.size()));
-        saved.push_back(std::move(d->volume));
-      }
     }
   });
 
@@ -251,11 +248,9 @@ DemoResult RunDemo(const DemoOptions& o) {
     result.latency.p99_ms = estimation::Percentile(latency_ms, 0.99);
     result.latency.max_ms = estimation::Percentile(latency_ms, 1.0);
   }
+  result.volumes_recorded = ts.recorded;
   if (writer) writer->Flush();
-  if (o.save_volumes && !saved.empty()) {
-    log(Fmt("writing %zu volumes to %s", saved.size(), (o.out_dir / "volumes.igs.mha").c_str()));
-    imaging::WritePlusSequence(imaging::VolumesToSequence(saved), o.out_dir / "volumes.igs.mha", false);
-  }
+  if (recorder) recorder->SyncData();
   return result;
 }
 

@@ -39,13 +39,12 @@ struct DemoOptions {
   double metrics_start_s = 3.0;
   std::uint64_t seed = 1;
   std::filesystem::path out_dir;  // the RUN directory (docs/report.md); empty: not written
-  // Also write the volumes the tracker processed to out_dir/volumes.igs.mha (a PLUS
-  // sequence, uncompressed: 4.9 MB a volume, kept in memory until the end, so at most
-  // kMaxSavedDurationS of run) for `echoservo track --replay`.
+  // Also record the volumes the tracker receives to out_dir/volumes.igs.mhd (+ .raw: a
+  // PLUS sequence, uncompressed, 4.9 MB a volume, each on disk as it is processed; see
+  // imaging/io/sequence_writer.h) for `echoservo track --replay`.
   bool save_volumes = false;
   // The tracker's published motion: the EKF, or the zero-order-hold baseline.
   bool zero_order_hold = false;
-  static constexpr double kMaxSavedDurationS = 20.0;
   double sheath_id_mm = 1.59;     // the seed's water-tank catheter (its two bends)
   double guidewire_od_mm = 1.50;
   int dds_domain = 42;            // the DDS domain of the tracker → servo link (loopback only)
@@ -71,6 +70,7 @@ struct DemoResult {
   std::uint64_t dropped_frames = 0;        // not detected, skipped by a late tracker, or not acquired
   std::uint64_t missed_acquisitions = 0;   // acquisition slots lost to a late renderer
   std::uint64_t tracker_errors = 0;        // volumes the tracker could not process (logged)
+  std::uint64_t volumes_recorded = 0;      // --save-volumes: volumes written to volumes.igs.mhd
   std::uint64_t estimates_accepted = 0;    // by the servo
   std::uint64_t estimates_rejected = 0;
   std::uint64_t em_samples = 0, em_dropouts = 0;

@@ -1,6 +1,7 @@
 #include "apps/live/tracker_node.h"
 
 #include "hw/run_record.h"
+#include "imaging/io/sequence_writer.h"
 
 namespace echoservo::live {
 
@@ -15,11 +16,34 @@ estimation::HeartbeatEkfOptions TrackerNodeOptions::DefaultEkfOptions() {
   return o;
 }
 
-TrackerNode::TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher, hw::RunWriter* writer)
-    : o_(std::move(options)), publisher_(publisher), writer_(writer), detector_(o_.detector), ekf_(o_.ekf) {}
+TrackerNode::TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher, hw::RunWriter* writer,
+                         imaging::SequenceWriter* recorder)
+    : o_(std::move(options)),
+      publisher_(publisher),
+      writer_(writer),
+      recorder_(recorder),
+      detector_(o_.detector),
+      ekf_(o_.ekf) {}
 
 TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double acquired_s, double arrived_s,
                                    const std::function<double()>& now_s) {
+  TrackedVolume out = Track(volume, acquired_s, arrived_s, now_s);
+  if (recorder_ == nullptr) return out;
+  try {  // after publishing: the disk is not on the estimate's path
+    recorder_->Append(volume);
+    ++stats_.recorded;
+  } catch (const std::exception& e) {  // recording stops; tracking goes on
+    ++stats_.record_errors;
+    const std::string msg = std::string("volume recording stopped at frame ") +
+                            std::to_string(recorder_->frames()) + ": " + e.what();
+    out.error = out.error.empty() ? msg : out.error + "; " + msg;
+    recorder_ = nullptr;
+  }
+  return out;
+}
+
+TrackedVolume TrackerNode::Track(const imaging::Volume& volume, double acquired_s, double arrived_s,
+                                 const std::function<double()>& now_s) {
   TrackedVolume out;
   ++stats_.volumes;
   auto fail = [&](const std::exception& e) {

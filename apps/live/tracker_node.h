@@ -27,6 +27,9 @@
 namespace echoservo::hw {
 class RunWriter;
 }
+namespace echoservo::imaging {
+class SequenceWriter;
+}
 
 namespace echoservo::live {
 
@@ -57,16 +60,21 @@ struct TrackedVolume {
 
 struct TrackerStats {
   std::uint64_t volumes = 0, measured = 0, not_found = 0, published = 0, errors = 0, publish_failures = 0;
+  std::uint64_t recorded = 0, record_errors = 0;  // volumes appended to the recorder
 };
 
 class TrackerNode {
  public:
-  // `publisher` (may be null: no link) and `writer` (may be null: no RUN directory) must
-  // outlive the node. Throws std::invalid_argument for bad options.
-  TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher, hw::RunWriter* writer);
+  // `publisher` (may be null: no link), `writer` (may be null: no RUN directory) and
+  // `recorder` (may be null: volumes not recorded) must outlive the node. Throws
+  // std::invalid_argument for bad options.
+  TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher, hw::RunWriter* writer,
+              imaging::SequenceWriter* recorder = nullptr);
 
   // Processes one volume acquired at `acquired_s` that arrived at `arrived_s`; `now_s`
-  // gives the node clock (the publication time is taken after detection and EKF).
+  // gives the node clock (the publication time is taken after detection and EKF). Then
+  // appends the volume, as received, to the recorder; a recording error is reported in
+  // the result's `error` and ends the recording (tracking goes on).
   TrackedVolume Process(const imaging::Volume& volume, double acquired_s, double arrived_s,
                         const std::function<double()>& now_s);
 
@@ -76,9 +84,13 @@ class TrackerNode {
   const std::optional<Eigen::Vector3d>& reference_axis() const { return reference_axis_; }
 
  private:
+  TrackedVolume Track(const imaging::Volume& volume, double acquired_s, double arrived_s,
+                      const std::function<double()>& now_s);
+
   TrackerNodeOptions o_;
   link::TargetPublisher* publisher_;
   hw::RunWriter* writer_;
+  imaging::SequenceWriter* recorder_;
   tracking::RadonDetector detector_;
   estimation::HeartbeatEkf ekf_;
   std::optional<Eigen::Vector3d> reference_axis_;

@@ -263,120 +263,34 @@ PlusSequence ReadPlusSequence(const fs::path& path) {
   return s;
 }
 
-void WritePlusSequence(const PlusSequence& s, const fs::path& path, bool compress) {
-  const std::string where = path.string() + ": ";
-  const auto expected = s.FrameBytes() * s.frames.size();
-  if (s.pixels.size() != expected) {
-    throw std::invalid_argument(where + "pixels has " + std::to_string(s.pixels.size()) +
-                                " bytes, frames × frame size is " + std::to_string(expected));
-  }
-  if (ii::MetaElementSize(s.element_type).value_or(-1) != s.element_size && expected > 0) {
-    throw std::invalid_argument(where + "element_size " + std::to_string(s.element_size) +
-                                " does not match element_type " + s.element_type);
-  }
-  const bool nrrd = [&] {
-    std::string e = path.extension().string();
-    for (auto& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    return e == ".nrrd";
-  }();
-  const std::size_t nd = s.volume_frames ? 4 : 3;
-  const std::size_t n_frames = s.frames.size();
+namespace {
+
+std::string DimsText(const PlusSequence& s, std::size_t n_frames) {
   std::vector<std::int64_t> dims = {s.frame_dims[0], s.frame_dims[1]};
   if (s.volume_frames) dims.push_back(s.frame_dims[2]);
   dims.push_back(static_cast<std::int64_t>(n_frames));
-  std::string dims_text;
-  for (auto d : dims) {
-    if (!dims_text.empty()) dims_text += ' ';
-    dims_text += std::to_string(d);
-  }
-  std::string kinds = s.volume_frames ? "domain domain domain list" : "domain domain list";
-
-  std::vector<std::uint8_t> packed;
-  const bool do_compress = compress && !s.pixels.empty();
-  if (do_compress) packed = ii::Deflate(s.pixels, nrrd);
-
-  int width = 4;
-  for (std::size_t n = n_frames; n > 10000; n /= 10) ++width;
-  auto frame_key = [&](std::size_t i, const std::string& name) {
-    std::string num = std::to_string(i);
-    if (static_cast<int>(num.size()) < width) num.insert(0, static_cast<std::size_t>(width) - num.size(), '0');
-    return std::string(kFramePrefix) + num + "_" + name;
-  };
-
   std::string text;
-  if (!nrrd) {
-    auto line = [&](const std::string& k, const std::string& v) { text += k + " = " + v + "\n"; };
-    std::vector<double> spacing, offset, tm;
-    for (std::size_t a = 0; a < nd; ++a) {
-      spacing.push_back(a < 3 ? s.spacing_mm[static_cast<int>(a)] : 1.0);
-      offset.push_back(a < 3 ? s.origin_mm[static_cast<int>(a)] : 0.0);
-    }
-    for (std::size_t c = 0; c < nd; ++c)
-      for (std::size_t r = 0; r < nd; ++r)
-        tm.push_back(r < 3 && c < 3 ? s.direction(static_cast<int>(r), static_cast<int>(c)) : (r == c ? 1.0 : 0.0));
-    line("ObjectType", "Image");
-    line("NDims", std::to_string(nd));
-    line("AnatomicalOrientation", s.HeaderField("AnatomicalOrientation").value_or("RAI"));
-    line("BinaryData", "True");
-    line("BinaryDataByteOrderMSB", "False");
-    line("CenterOfRotation", s.HeaderField("CenterOfRotation").value_or(nd == 4 ? "0 0 0 0" : "0 0 0"));
-    line("CompressedData", do_compress ? "True" : "False");
-    if (do_compress) line("CompressedDataSize", std::to_string(packed.size()));
-    line("DimSize", dims_text);
-    line("Kinds", s.HeaderField("Kinds").value_or(kinds));
-    line("ElementSpacing", JoinNumbers(spacing));
-    line("ElementType", s.element_type);
-    line("Offset", JoinNumbers(offset));
-    line("TransformMatrix", JoinNumbers(tm));
-    for (const auto& [k, v] : s.header_fields) {
-      if (k == "AnatomicalOrientation" || k == "CenterOfRotation" || k == "Kinds" || IsStructuralMetaKey(k)) continue;
-      if (k.empty() || k.find('=') != std::string::npos || k.rfind(kFramePrefix, 0) == 0) {
-        throw std::invalid_argument(where + "header field name '" + k + "' cannot be written");
-      }
-      line(k, v);
-    }
-    for (std::size_t i = 0; i < n_frames; ++i)
-      for (const auto& [k, v] : s.frames[i].fields) line(frame_key(i, k), v);
-    line("ElementDataFile", "LOCAL");
-  } else {
-    text += "NRRD0004\n# Complete NRRD file format specification at:\n"
-            "# http://teem.sourceforge.net/nrrd/format.html\n";
-    text += "dimension: " + std::to_string(nd) + "\n";
-    text += std::string("encoding: ") + (do_compress ? "gz" : "raw") + "\n";
-    text += "endian: little\n";
-    text += "kinds: " + kinds + "\n";
-    text += "sizes: " + dims_text + "\n";
-    text += "space dimension: 3\n";
-    std::string dirs;
-    for (std::size_t a = 0; a + 1 < nd; ++a) {
-      const Eigen::Vector3d v = s.direction.col(static_cast<int>(a)) * s.spacing_mm[static_cast<int>(a)];
-      dirs += '(';
-      dirs += ii::FormatNumber(v.x());
-      dirs += ',';
-      dirs += ii::FormatNumber(v.y());
-      dirs += ',';
-      dirs += ii::FormatNumber(v.z());
-      dirs += ") ";
-    }
-    text += "space directions: " + dirs + "none\n";
-    text += "space origin: (";
-    text += ii::FormatNumber(s.origin_mm.x());
-    text += ',';
-    text += ii::FormatNumber(s.origin_mm.y());
-    text += ',';
-    text += ii::FormatNumber(s.origin_mm.z());
-    text += ")\n";
-    text += "type: " + NrrdType(s.element_type == "MET_OTHER" ? "MET_UCHAR" : s.element_type) + "\n";
-    for (const auto& [k, v] : s.header_fields) {
-      if (k.find(":=") != std::string::npos || k.rfind(kFramePrefix, 0) == 0) {
-        throw std::invalid_argument(where + "header field name '" + k + "' cannot be written");
-      }
-      text += k + ":=" + v + "\n";
-    }
-    for (std::size_t i = 0; i < n_frames; ++i)
-      for (const auto& [k, v] : s.frames[i].fields) text += frame_key(i, k == "ImageStatus" ? "Status" : k) + ":=" + v + "\n";
-    text += "\n";
+  for (auto d : dims) {
+    if (!text.empty()) text += ' ';
+    text += std::to_string(d);
   }
+  return text;
+}
+
+std::string DefaultKinds(const PlusSequence& s) {
+  return s.volume_frames ? "domain domain domain list" : "domain domain list";
+}
+
+// Seq_FrameNNNN_<name>, with 4 digits (more when the sequence has more than 10000 frames).
+std::string FrameKey(std::size_t i, std::size_t n_frames, const std::string& name) {
+  std::size_t width = 4;
+  for (std::size_t n = n_frames; n > 10000; n /= 10) ++width;
+  std::string num = std::to_string(i);
+  if (num.size() < width) num.insert(0, width - num.size(), '0');
+  return std::string(kFramePrefix) + num + "_" + name;
+}
+
+void CheckFrameFields(const PlusSequence& s, const std::string& where) {
   for (const auto& f : s.frames) {
     for (const auto& [k, v] : f.fields) {
       if (k.empty() || v.find('\n') != std::string::npos || k.find_first_of(" =:\n") != std::string::npos) {
@@ -384,6 +298,125 @@ void WritePlusSequence(const PlusSequence& s, const fs::path& path, bool compres
       }
     }
   }
+}
+
+// The MetaImage header of `s`, up to and including its ElementDataFile line (`data_file`:
+// LOCAL, or the name of the raw file beside the header). `compressed_size`: the size of the
+// zlib stream when the data are compressed.
+std::string MetaHeaderText(const PlusSequence& s, std::optional<std::size_t> compressed_size,
+                           const std::string& data_file, const std::string& where) {
+  const std::size_t nd = s.volume_frames ? 4 : 3;
+  const std::size_t n_frames = s.frames.size();
+  std::string text;
+  auto line = [&](const std::string& k, const std::string& v) { text += k + " = " + v + "\n"; };
+  std::vector<double> spacing, offset, tm;
+  for (std::size_t a = 0; a < nd; ++a) {
+    spacing.push_back(a < 3 ? s.spacing_mm[static_cast<int>(a)] : 1.0);
+    offset.push_back(a < 3 ? s.origin_mm[static_cast<int>(a)] : 0.0);
+  }
+  for (std::size_t c = 0; c < nd; ++c)
+    for (std::size_t r = 0; r < nd; ++r)
+      tm.push_back(r < 3 && c < 3 ? s.direction(static_cast<int>(r), static_cast<int>(c)) : (r == c ? 1.0 : 0.0));
+  line("ObjectType", "Image");
+  line("NDims", std::to_string(nd));
+  line("AnatomicalOrientation", s.HeaderField("AnatomicalOrientation").value_or("RAI"));
+  line("BinaryData", "True");
+  line("BinaryDataByteOrderMSB", "False");
+  line("CenterOfRotation", s.HeaderField("CenterOfRotation").value_or(nd == 4 ? "0 0 0 0" : "0 0 0"));
+  line("CompressedData", compressed_size ? "True" : "False");
+  if (compressed_size) line("CompressedDataSize", std::to_string(*compressed_size));
+  line("DimSize", DimsText(s, n_frames));
+  line("Kinds", s.HeaderField("Kinds").value_or(DefaultKinds(s)));
+  line("ElementSpacing", JoinNumbers(spacing));
+  line("ElementType", s.element_type);
+  line("Offset", JoinNumbers(offset));
+  line("TransformMatrix", JoinNumbers(tm));
+  for (const auto& [k, v] : s.header_fields) {
+    if (k == "AnatomicalOrientation" || k == "CenterOfRotation" || k == "Kinds" || IsStructuralMetaKey(k)) continue;
+    if (k.empty() || k.find('=') != std::string::npos || k.rfind(kFramePrefix, 0) == 0) {
+      throw std::invalid_argument(where + "header field name '" + k + "' cannot be written");
+    }
+    line(k, v);
+  }
+  for (std::size_t i = 0; i < n_frames; ++i)
+    for (const auto& [k, v] : s.frames[i].fields) line(FrameKey(i, n_frames, k), v);
+  line("ElementDataFile", data_file);
+  return text;
+}
+
+std::string NrrdHeaderText(const PlusSequence& s, bool compressed, const std::string& where) {
+  const std::size_t nd = s.volume_frames ? 4 : 3;
+  const std::size_t n_frames = s.frames.size();
+  std::string text = "NRRD0004\n# Complete NRRD file format specification at:\n"
+                     "# http://teem.sourceforge.net/nrrd/format.html\n";
+  text += "dimension: " + std::to_string(nd) + "\n";
+  text += std::string("encoding: ") + (compressed ? "gz" : "raw") + "\n";
+  text += "endian: little\n";
+  text += "kinds: " + DefaultKinds(s) + "\n";
+  text += "sizes: " + DimsText(s, n_frames) + "\n";
+  text += "space dimension: 3\n";
+  std::string dirs;
+  for (std::size_t a = 0; a + 1 < nd; ++a) {
+    const Eigen::Vector3d v = s.direction.col(static_cast<int>(a)) * s.spacing_mm[static_cast<int>(a)];
+    dirs += '(';
+    dirs += ii::FormatNumber(v.x());
+    dirs += ',';
+    dirs += ii::FormatNumber(v.y());
+    dirs += ',';
+    dirs += ii::FormatNumber(v.z());
+    dirs += ") ";
+  }
+  text += "space directions: " + dirs + "none\n";
+  text += "space origin: (";
+  text += ii::FormatNumber(s.origin_mm.x());
+  text += ',';
+  text += ii::FormatNumber(s.origin_mm.y());
+  text += ',';
+  text += ii::FormatNumber(s.origin_mm.z());
+  text += ")\n";
+  text += "type: " + NrrdType(s.element_type == "MET_OTHER" ? "MET_UCHAR" : s.element_type) + "\n";
+  for (const auto& [k, v] : s.header_fields) {
+    if (k.find(":=") != std::string::npos || k.rfind(kFramePrefix, 0) == 0) {
+      throw std::invalid_argument(where + "header field name '" + k + "' cannot be written");
+    }
+    text += k + ":=" + v + "\n";
+  }
+  for (std::size_t i = 0; i < n_frames; ++i)
+    for (const auto& [k, v] : s.frames[i].fields)
+      text += FrameKey(i, n_frames, k == "ImageStatus" ? "Status" : k) + ":=" + v + "\n";
+  text += "\n";
+  return text;
+}
+
+void CheckElementType(const PlusSequence& s, const std::string& where) {
+  if (ii::MetaElementSize(s.element_type).value_or(-1) != s.element_size && s.FrameBytes() > 0) {
+    throw std::invalid_argument(where + "element_size " + std::to_string(s.element_size) +
+                                " does not match element_type " + s.element_type);
+  }
+}
+
+}  // namespace
+
+void WritePlusSequence(const PlusSequence& s, const fs::path& path, bool compress) {
+  const std::string where = path.string() + ": ";
+  const auto expected = s.FrameBytes() * s.frames.size();
+  if (s.pixels.size() != expected) {
+    throw std::invalid_argument(where + "pixels has " + std::to_string(s.pixels.size()) +
+                                " bytes, frames × frame size is " + std::to_string(expected));
+  }
+  CheckElementType(s, where);
+  CheckFrameFields(s, where);
+  const bool nrrd = [&] {
+    std::string e = path.extension().string();
+    for (auto& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return e == ".nrrd";
+  }();
+  std::vector<std::uint8_t> packed;
+  const bool do_compress = compress && !s.pixels.empty();
+  if (do_compress) packed = ii::Deflate(s.pixels, nrrd);
+  const std::string text =
+      nrrd ? NrrdHeaderText(s, do_compress, where)
+           : MetaHeaderText(s, do_compress ? std::optional<std::size_t>(packed.size()) : std::nullopt, "LOCAL", where);
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) throw std::invalid_argument(where + "cannot open for writing");
   out.write(text.data(), static_cast<std::streamsize>(text.size()));
@@ -391,6 +424,17 @@ void WritePlusSequence(const PlusSequence& s, const fs::path& path, bool compres
   out.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
   out.close();
   if (!out) throw std::invalid_argument(where + "write failed");
+}
+
+std::string PlusSequenceDetachedHeader(const PlusSequence& s, const std::string& data_file_name) {
+  const std::string where = "PLUS sequence header for " + data_file_name + ": ";
+  if (data_file_name.empty() || data_file_name == "LOCAL" || data_file_name == "LIST" ||
+      data_file_name.find_first_of(" %/\n") != std::string::npos) {
+    throw std::invalid_argument(where + "not a plain file name");
+  }
+  CheckElementType(s, where);
+  CheckFrameFields(s, where);
+  return MetaHeaderText(s, std::nullopt, data_file_name, where);
 }
 
 Volume SequenceFrameToVolume(const PlusSequence& s, std::size_t frame) {
@@ -439,45 +483,53 @@ std::vector<Volume> SequenceToVolumes(const PlusSequence& s) {
   return out;
 }
 
-PlusSequence VolumesToSequence(std::span<const Volume> volumes) {
+PlusSequence SequenceFor(const Volume& first) {
   PlusSequence s;
-  if (volumes.empty()) throw std::invalid_argument("VolumesToSequence: no volumes");
-  const auto& g0 = volumes.front().geometry();
-  bool all_flat = true;
-  for (std::size_t i = 0; i < volumes.size(); ++i) {
-    const auto& g = volumes[i].geometry();
-    if (g.dims != g0.dims || g.spacing_mm != g0.spacing_mm || g.origin_mm != g0.origin_mm ||
-        g.direction != g0.direction) {
-      throw std::invalid_argument("VolumesToSequence: volume " + std::to_string(i) +
-                                  " has a geometry different from volume 0's");
-    }
-    all_flat = all_flat && g.dims.z() == 1;
-  }
-  s.volume_frames = !all_flat;
-  s.frame_dims = {g0.dims.x(), g0.dims.y(), g0.dims.z()};
-  s.spacing_mm = g0.spacing_mm;
-  s.origin_mm = g0.origin_mm;
-  s.direction = g0.direction;
+  const auto& g = first.geometry();
+  s.volume_frames = g.dims.z() != 1;
+  s.frame_dims = {g.dims.x(), g.dims.y(), g.dims.z()};
+  s.spacing_mm = g.spacing_mm;
+  s.origin_mm = g.origin_mm;
+  s.direction = g.direction;
   s.element_type = "MET_UCHAR";
   s.element_size = 1;
   s.header_fields = {{"UltrasoundImageOrientation", "MFA"}};
-  s.pixels.reserve(volumes.size() * volumes.front().voxel_count());
+  return s;
+}
+
+SequenceFrame VolumeFrameFields(const Volume& vol) {
   auto matrix_text = [](const Eigen::Isometry3d& t) {
     std::vector<double> v;
     for (int r = 0; r < 4; ++r)
       for (int c = 0; c < 4; ++c) v.push_back(t.matrix()(r, c));
     return JoinNumbers(v);
   };
+  SequenceFrame f;
+  f.fields["FrameNumber"] = std::to_string(vol.frame_index());
+  f.fields["Timestamp"] = ii::FormatNumber(vol.timestamp_s());
+  f.fields["ImageStatus"] = "OK";
+  f.fields["ImageToProbeTransform"] = matrix_text(vol.image_to_probe());
+  f.fields["ImageToProbeTransformStatus"] = "OK";
+  f.fields["ProbeToReferenceTransform"] = matrix_text(vol.probe_to_reference());
+  f.fields["ProbeToReferenceTransformStatus"] = "OK";
+  return f;
+}
+
+PlusSequence VolumesToSequence(std::span<const Volume> volumes) {
+  if (volumes.empty()) throw std::invalid_argument("VolumesToSequence: no volumes");
+  PlusSequence s = SequenceFor(volumes.front());
+  bool all_flat = true;
+  for (std::size_t i = 0; i < volumes.size(); ++i) {
+    if (!(volumes[i].geometry() == volumes.front().geometry())) {
+      throw std::invalid_argument("VolumesToSequence: volume " + std::to_string(i) +
+                                  " has a geometry different from volume 0's");
+    }
+    all_flat = all_flat && volumes[i].geometry().dims.z() == 1;
+  }
+  s.volume_frames = !all_flat;
+  s.pixels.reserve(volumes.size() * volumes.front().voxel_count());
   for (const auto& vol : volumes) {
-    SequenceFrame f;
-    f.fields["FrameNumber"] = std::to_string(vol.frame_index());
-    f.fields["Timestamp"] = ii::FormatNumber(vol.timestamp_s());
-    f.fields["ImageStatus"] = "OK";
-    f.fields["ImageToProbeTransform"] = matrix_text(vol.image_to_probe());
-    f.fields["ImageToProbeTransformStatus"] = "OK";
-    f.fields["ProbeToReferenceTransform"] = matrix_text(vol.probe_to_reference());
-    f.fields["ProbeToReferenceTransformStatus"] = "OK";
-    s.frames.push_back(std::move(f));
+    s.frames.push_back(VolumeFrameFields(vol));
     s.pixels.insert(s.pixels.end(), vol.voxels().begin(), vol.voxels().end());
   }
   return s;

@@ -102,5 +102,16 @@ Volume SequenceFrameToVolume(const PlusSequence& sequence, std::size_t frame);
 // volume has dims.z = 1) with fields Timestamp, FrameNumber, ImageStatus = OK,
 // ImageToProbeTransform(+Status), ProbeToReferenceTransform(+Status).
 PlusSequence VolumesToSequence(std::span<const Volume> volumes);
+// Its two halves, for writers that add frames one at a time (imaging/io/sequence_writer.h):
+// the header of a sequence of volumes shaped like `first` (geometry, MET_UCHAR, no frames,
+// no pixels), and the per-frame fields VolumesToSequence gives `volume`.
+PlusSequence SequenceFor(const Volume& first);
+SequenceFrame VolumeFrameFields(const Volume& volume);
+
+// The MetaImage header (.mhd text, up to and including `ElementDataFile = <data_file_name>`)
+// of `sequence`'s frames, whose raw, uncompressed pixels are in the file `data_file_name`
+// beside the header; `sequence.pixels` is not used. Throws std::invalid_argument when the
+// name is not a plain file name or a field cannot be written.
+std::string PlusSequenceDetachedHeader(const PlusSequence& sequence, const std::string& data_file_name);
 
 }  // namespace echoservo::imaging

@@ -101,14 +101,23 @@ TEST(LiveProcesses, OperatorCommandsReachTheServoAndItsStateConfirmsThem) {
   EXPECT_NE(none.err.find("no servo"), std::string::npos) << none.err;
 }
 
+// A targets.csv row's detection (found … confidence), without its three times.
+std::string Detection(const std::string& row) {
+  std::size_t p = 0;
+  for (int i = 0; i < 3; ++i) p = row.find(',', p) + 1;
+  return row.substr(p);
+}
+
 TEST(LiveProcesses, ReplayOfARecordedDemoReproducesItsDetectionsAndScoresAgainstItsEmLog) {
   const testing::TempDir dir("live_replay", true);
   const fs::path run = dir.path() / "run", replay = dir.path() / "replay";
-  auto r = RunCli("demo --duration 5 --metrics-start 2 --save-volumes --dds-domain 64 --json --out " +
+  // 8 s: long enough for the tip to follow (the report needs it moving) at ASan speed too.
+  auto r = RunCli("demo --duration 8 --metrics-start 2 --save-volumes --dds-domain 64 --json --out " +
                   ShellQuote(run.string()));
   ASSERT_EQ(r.rc, 0) << r.err;
-  ASSERT_TRUE(fs::exists(run / "volumes.igs.mha"));
-  r = RunCli("track --replay " + ShellQuote((run / "volumes.igs.mha").string()) + " --json --out " +
+  ASSERT_TRUE(fs::exists(run / "volumes.igs.mhd"));
+  EXPECT_EQ(nlohmann::json::parse(r.out)["volumes_recorded"].get<int>() + 1, static_cast<int>(Lines(run / "targets.csv").size()));
+  r = RunCli("track --replay " + ShellQuote((run / "volumes.igs.mhd").string()) + " --json --out " +
              ShellQuote(replay.string()));
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
@@ -117,12 +126,7 @@ TEST(LiveProcesses, ReplayOfARecordedDemoReproducesItsDetectionsAndScoresAgainst
   const std::vector<std::string> live = Lines(run / "targets.csv"), again = Lines(replay / "targets.csv");
   ASSERT_EQ(live.size(), again.size());
   EXPECT_EQ(j["volumes"].get<std::size_t>() + 1, live.size());
-  auto detection = [](const std::string& row) {  // found … confidence, without the three times
-    std::size_t p = 0;
-    for (int i = 0; i < 3; ++i) p = row.find(',', p) + 1;
-    return row.substr(p);
-  };
-  for (std::size_t i = 1; i < live.size(); ++i) ASSERT_EQ(detection(live[i]), detection(again[i])) << "row " << i;
+  for (std::size_t i = 1; i < live.size(); ++i) ASSERT_EQ(Detection(live[i]), Detection(again[i])) << "row " << i;
   // The replay's RUN carries the recording's EM calibration; the report scores it against
   // the recorded EM log.
   r = RunCli("report " + ShellQuote(replay.string()) + " --em " + ShellQuote((run / "em.csv").string()) +
@@ -139,7 +143,7 @@ TEST(LiveProcesses, ADemoKilledMidRunLeavesARunItsReportReads) {
   const fs::path run = dir.path() / "run";
   // Killed once 5 s of servo rows (100 Hz) are on disk, wherever the demo is then.
   const std::string servo_csv = ShellQuote((run / "servo.csv").string());
-  auto r = RunShell(kCli + " demo --duration 120 --dds-domain 66 --out " + ShellQuote(run.string()) +
+  auto r = RunShell(kCli + " demo --duration 120 --dds-domain 66 --save-volumes --out " + ShellQuote(run.string()) +
                     " > /dev/null 2>&1 & pid=$!; for i in $(seq 1 900); do n=$(cat " + servo_csv +
                     " 2>/dev/null | wc -l); [ \"$n\" -gt 500 ] && break; sleep 0.1; done; kill -9 $pid; wait $pid; exit 0");
   ASSERT_EQ(r.rc, 0) << r.err;
@@ -152,6 +156,19 @@ TEST(LiveProcesses, ADemoKilledMidRunLeavesARunItsReportReads) {
   EXPECT_TRUE(std::isfinite(rep["tip_to_target_rms_mm"].get<double>()));
   const std::vector<std::string> servo = Lines(run / "servo.csv");
   EXPECT_GT(servo.size(), 500u);
+  // The volume recording holds every volume the tracker had finished with, but perhaps the
+  // one in flight (its targets.csv row is written before the volume is appended), and
+  // replays to the same detections.
+  const std::vector<std::string> targets = Lines(run / "targets.csv");
+  r = RunCli("track --replay " + ShellQuote((run / "volumes.igs.mhd").string()) + " --json --out " +
+             ShellQuote((dir.path() / "replay").string()));
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto replayed = nlohmann::json::parse(r.out)["volumes"].get<std::size_t>();
+  EXPECT_GE(replayed + 1, targets.size() - 1) << "volumes lost beyond the one in flight";
+  EXPECT_LE(replayed, targets.size() - 1);
+  const std::vector<std::string> again = Lines(dir.path() / "replay" / "targets.csv");
+  ASSERT_EQ(again.size(), replayed + 1);
+  for (std::size_t i = 1; i < again.size(); ++i) ASSERT_EQ(Detection(targets[i]), Detection(again[i])) << "row " << i;
 }
 
 // Two network namespaces joined by a veth whose both ends go through a token-bucket
@@ -183,15 +200,21 @@ TEST(LiveProcesses, BadSourcesAreClearErrors) {
   auto r = RunCli("track --duration 1");
   EXPECT_NE(r.rc, 0);
   EXPECT_NE(r.err.find("exactly one of"), std::string::npos) << r.err;
-  r = RunCli("track --replay /nonexistent/volumes.igs.mha");
+  r = RunCli("track --replay /nonexistent/volumes.igs.mhd");
   EXPECT_NE(r.rc, 0);
-  EXPECT_NE(r.err.find("/nonexistent/volumes.igs.mha"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("/nonexistent/volumes.igs.mhd"), std::string::npos) << r.err;
   r = RunCli("track --connect localhost --duration 1");
   EXPECT_NE(r.rc, 0);
   EXPECT_NE(r.err.find("HOST:PORT"), std::string::npos) << r.err;
   r = RunCli("track --sim");
   EXPECT_NE(r.rc, 0);
   EXPECT_NE(r.err.find("--duration"), std::string::npos) << r.err;
+  r = RunCli("track --sim --duration 1 --save-volumes");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("--save-volumes: needs --out"), std::string::npos) << r.err;
+  r = RunCli("track --replay x.igs.mhd --out /tmp/nowhere --save-volumes");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("recorded already"), std::string::npos) << r.err;
   r = RunCli("command enable --loopback --dds-domain 65 --wait 1");
   EXPECT_NE(r.rc, 0);
   EXPECT_NE(r.err.find("--standoff"), std::string::npos) << r.err;
