@@ -112,6 +112,7 @@ void RunTrack(const TrackArgs& a) {
     if (!r.error.empty()) std::fprintf(stderr, "track: volume skipped: %s\n", r.error.c_str());
   };
   std::uint64_t missed = 0, dropped = 0;
+  nlohmann::json ingest = nullptr;  // --connect: the OpenIGTLink client's counts
   std::optional<live::TrackerNode> node;
 
   if (replay) {
@@ -176,7 +177,15 @@ void RunTrack(const TrackArgs& a) {
       report_error(node->Process(f->frame.volume, acquired, f->arrival_s, [] { return link::NowS(); }));
     }
     client.Stop();
-    dropped = static_cast<std::uint64_t>(client.stats().dropped);
+    const imaging::openigtlink::IngestStats is = client.stats();
+    dropped = static_cast<std::uint64_t>(is.dropped);
+    ingest = {{"frames", is.frames},
+              {"connections", is.connections},
+              {"connect_failures", is.connect_failures},
+              {"rejected", is.rejected},
+              {"rejected_by_reason", is.rejected_by_reason}};
+    for (const auto& [reason, n] : is.rejected_by_reason)
+      std::fprintf(stderr, "track: ingest rejected %lld message(s): %s\n", static_cast<long long>(n), reason.c_str());
   }
   if (writer) writer->Flush();
   if (recorder) recorder->SyncData();
@@ -192,6 +201,7 @@ void RunTrack(const TrackArgs& a) {
                                 {"volumes_recorded", s.recorded},
                                 {"dropped", dropped},
                                 {"missed_acquisitions", missed},
+                                {"ingest", ingest},
                                 {"ekf_harmonics", node->ekf().harmonics()},
                                 {"ekf_rate_hz", node->ekf().rate_hz()},
                                 {"run_dir", a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}}

@@ -10,6 +10,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -48,23 +49,32 @@ std::vector<std::string> Lines(const fs::path& p) {
 TEST(LiveProcesses, TrackAndServoCloseTheLoopAndTheServoRetractsWhenTheTrackerGoes) {
   const testing::TempDir dir("live_procs", true);
   const fs::path servo = dir.path() / "servo.json", track = dir.path() / "track.json";
-  // The servo outlives the tracker by 4 s: its watchdog must hold, then retract.
+  // The servo outlives the tracker by 4 s: its watchdog must hold, then retract. 12 vol/s
+  // and a 3-harmonic EKF: a rate a slow build (ASan renders ~5 vol/s) can still resolve
+  // the heartbeat at (2 s of measurements fit its 7 parameters).
   const auto r = RunShell(kCli + " servo --loopback --dds-domain 61 --duration 13 --auto-enable --json > " +
                           ShellQuote(servo.string()) + " & " + kCli +
-                          " track --sim --loopback --dds-domain 61 --duration 9 --json > " +
+                          " track --sim --rate 12 --harmonics 3 --loopback --dds-domain 61 --duration 9 --json > " +
                           ShellQuote(track.string()) + "; rc=$?; wait; exit $rc");
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto t = ParseFile(track), s = ParseFile(servo);
   ASSERT_FALSE(t.is_discarded());
   ASSERT_FALSE(s.is_discarded());
-  // 25 vol/s for 9 s: ≤ 226 volumes (a loaded machine renders fewer: 81 seen at load 8);
-  // the catheter and target are found in (nearly) all.
-  EXPECT_LE(t["volumes"].get<int>(), 226);
-  EXPECT_GE(t["volumes"].get<int>(), 50);
-  EXPECT_GE(t["measured"].get<double>(), 0.9 * t["volumes"].get<double>());
-  EXPECT_GT(t["published"].get<int>(), 20);
-  // The servo took the estimates, followed, and never commanded outside a limit.
-  EXPECT_GT(s["estimates_accepted"].get<int>(), 20);
+  // 12 vol/s for 9 s: ≤ 109 acquisition slots, each processed, dropped (a newer volume
+  // arrived while the tracker was busy) or missed (the renderer was late; it never runs
+  // ahead), but the last one or two still in the 50–100 ms imaging delay; the catheter and
+  // target are found in (nearly) all processed volumes.
+  const int volumes = t["volumes"].get<int>(), missed = t["missed_acquisitions"].get<int>(),
+            dropped = t["dropped"].get<int>();
+  EXPECT_LE(volumes + dropped + missed, 109);
+  EXPECT_GE(volumes + dropped + missed, 95) << t.dump();
+  EXPECT_GE(volumes, 20);
+  EXPECT_GE(t["measured"].get<double>(), 0.9 * volumes);
+  // Estimates went out once the EKF was up (2 s of measurements).
+  EXPECT_GE(t["published"].get<int>(), 10);
+  // The servo took them (best effort over loopback: nearly all), followed, and never
+  // commanded outside a limit.
+  EXPECT_GE(s["estimates_accepted"].get<double>(), 0.8 * t["published"].get<double>());
   EXPECT_EQ(s["limit_violations"].get<int>(), 0);
   bool tracked = false;
   for (const auto& m : s["timeline"]) tracked |= m["mode"] == "tracking";
@@ -141,11 +151,13 @@ TEST(LiveProcesses, ReplayOfARecordedDemoReproducesItsDetectionsAndScoresAgainst
 TEST(LiveProcesses, ADemoKilledMidRunLeavesARunItsReportReads) {
   const testing::TempDir dir("live_kill9", true);
   const fs::path run = dir.path() / "run";
-  // Killed once 5 s of servo rows (100 Hz) are on disk, wherever the demo is then.
+  // Killed once the servo has been following for 3 s (300 rows at 100 Hz on disk), wherever
+  // the demo is then (the report needs the tip to have moved; how soon following starts
+  // depends on the machine's speed).
   const std::string servo_csv = ShellQuote((run / "servo.csv").string());
   auto r = RunShell(kCli + " demo --duration 120 --dds-domain 66 --save-volumes --out " + ShellQuote(run.string()) +
-                    " > /dev/null 2>&1 & pid=$!; for i in $(seq 1 900); do n=$(cat " + servo_csv +
-                    " 2>/dev/null | wc -l); [ \"$n\" -gt 500 ] && break; sleep 0.1; done; kill -9 $pid; wait $pid; exit 0");
+                    " > /dev/null 2>&1 & pid=$!; for i in $(seq 1 900); do n=$(grep -c ,following, " + servo_csv +
+                    " 2>/dev/null); [ \"${n:-0}\" -gt 300 ] && break; sleep 0.1; done; kill -9 $pid; wait $pid; exit 0");
   ASSERT_EQ(r.rc, 0) << r.err;
   ASSERT_TRUE(fs::exists(run / "servo.csv"));
   // Everything written up to the kill is there in whole rows: the report reads it.
@@ -155,7 +167,7 @@ TEST(LiveProcesses, ADemoKilledMidRunLeavesARunItsReportReads) {
   const auto rep = nlohmann::json::parse(r.out);
   EXPECT_TRUE(std::isfinite(rep["tip_to_target_rms_mm"].get<double>()));
   const std::vector<std::string> servo = Lines(run / "servo.csv");
-  EXPECT_GT(servo.size(), 500u);
+  EXPECT_GT(servo.size(), 300u);
   // The volume recording holds every volume the tracker had finished with, but perhaps the
   // one in flight (its targets.csv row is written before the volume is appended), and
   // replays to the same detections.
@@ -190,10 +202,59 @@ TEST(LiveProcesses, ServoAndTrackerInTwoNamespacesThroughAnImpairedLink) {
   std::printf("track published %d, servo accepted %d, limit violations %d, final mode %s\n",
               t["published"].get<int>(), s["estimates_accepted"].get<int>(), s["limit_violations"].get<int>(),
               s["final_mode"].get<std::string>().c_str());
-  EXPECT_GT(s["estimates_accepted"].get<int>(), 20);
+  // Through the bottleneck most estimates arrive (150 of 150 in Release; fewer are
+  // published at ASan speed).
+  EXPECT_GE(t["published"].get<int>(), 5);
+  EXPECT_GE(s["estimates_accepted"].get<double>(), 0.5 * t["published"].get<double>());
   EXPECT_EQ(s["limit_violations"].get<int>(), 0);
   // The tracker ends 4 s before the servo: the servo ends in its safe state.
   EXPECT_EQ(s["final_mode"], "retracting") << s.dump();
+}
+
+// The scanner fails under a live loop (tests/apps/igtl_fault_scanner.cc): after 6 s it
+// cuts its stream in the middle of a volume and stops listening for 2.5 s, then serves
+// again. The tracker's ingest counts the truncated message and reconnects; the servo holds
+// then retracts while no estimate comes, follows again once they return, and never
+// commands outside a limit.
+TEST(LiveProcesses, AScannerThatTruncatesDisconnectsAndReconnectsLeavesTheServoSafe) {
+  const testing::TempDir dir("live_scanner_faults", true);
+  const fs::path servo = dir.path() / "servo.json", track = dir.path() / "track.json",
+                 scanner = dir.path() / "scanner.json", port = dir.path() / "port";
+  const std::string link = " --loopback --dds-domain 67 --json";
+  const auto r = RunShell(
+      kCli + " servo --duration 19 --auto-enable" + link + " > " + ShellQuote(servo.string()) + " & " +
+      ShellQuote(IGTL_FAULT_SCANNER) + " " + ShellQuote(port.string()) + " 6 2.5 6 > " + ShellQuote(scanner.string()) +
+      " & for i in $(seq 1 100); do [ -s " + ShellQuote(port.string()) + " ] && break; sleep 0.1; done; " + kCli +
+      " track --connect 127.0.0.1:$(cat " + ShellQuote(port.string()) + ") --duration 16" + link + " > " +
+      ShellQuote(track.string()) + "; rc=$?; wait; exit $rc");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto sc = ParseFile(scanner), t = ParseFile(track), s = ParseFile(servo);
+  ASSERT_FALSE(sc.is_discarded()) << ReadFile(scanner);
+  ASSERT_FALSE(t.is_discarded()) << ReadFile(track);
+  ASSERT_FALSE(s.is_discarded()) << ReadFile(servo);
+  std::printf("scanner %s\ntrack ingest %s\nservo: %d accepted, %d resumes, %d limit violations, final %s\n",
+              sc.dump().c_str(), t["ingest"].dump().c_str(), s["estimates_accepted"].get<int>(),
+              s["resumes"].get<int>(), s["limit_violations"].get<int>(), s["final_mode"].get<std::string>().c_str());
+  // The faults reached the tracker: one truncated message, a second connection.
+  EXPECT_GT(sc["truncated_bytes"].get<int>(), 0);
+  EXPECT_TRUE(sc["second_client"].get<bool>());
+  EXPECT_EQ(t["ingest"]["rejected_by_reason"]["truncated_message"].get<int>(), 1) << t.dump();
+  EXPECT_EQ(t["ingest"]["connections"].get<int>(), 2) << t.dump();
+  EXPECT_GE(t["published"].get<int>(), 5);
+  // The servo: tracking, then (no estimate for > 2 s) holding and retracting, then tracking
+  // again; never outside a limit.
+  EXPECT_EQ(s["limit_violations"].get<int>(), 0);
+  std::vector<std::string> modes;
+  for (const auto& m : s["timeline"]) {
+    const std::string mode = m["mode"].get<std::string>();
+    if (modes.empty() || modes.back() != mode) modes.push_back(mode);
+  }
+  const auto first_tracking = std::find(modes.begin(), modes.end(), "tracking");
+  ASSERT_NE(first_tracking, modes.end()) << s.dump();
+  const auto retract = std::find(first_tracking, modes.end(), "retracting");
+  ASSERT_NE(retract, modes.end()) << "no safe state during the outage: " << s.dump();
+  EXPECT_NE(std::find(retract, modes.end(), "tracking"), modes.end()) << "did not follow again: " << s.dump();
+  EXPECT_GE(s["resumes"].get<int>(), 1);
 }
 
 TEST(LiveProcesses, BadSourcesAreClearErrors) {
