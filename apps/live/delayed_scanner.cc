@@ -28,12 +28,15 @@ void DelayedScanner::Run() {
   std::mt19937_64 rng(o_.seed + 3);
   std::uniform_real_distribution<double> delay(o_.delay_min_s, o_.delay_max_s);
   double last_deliver = 0.0;
+  // Slots 0 … last_slot lie within the run (t ≤ duration).
+  const auto last_slot = static_cast<std::int64_t>(std::floor(o_.duration_s * o_.rate_hz + 1e-9));
   for (std::int64_t k = 0; !stop_; ++k) {
     double t_acq = static_cast<double>(k) / o_.rate_hz;
-    // A scanner acquires on its own schedule: slots missed while rendering are lost.
+    // A scanner acquires on its own schedule: slots missed while rendering are lost (those
+    // past the end of the run were never slots).
     if (clock_.Now() > t_acq + 1.0 / o_.rate_hz) {
       const auto behind = std::max<std::int64_t>(0, static_cast<std::int64_t>(std::floor(clock_.Now() * o_.rate_hz)) - k);
-      missed_ += static_cast<std::uint64_t>(behind);
+      missed_ += static_cast<std::uint64_t>(std::min(behind, std::max<std::int64_t>(0, last_slot + 1 - k)));
       k += behind;
       t_acq = static_cast<double>(k) / o_.rate_hz;
     }

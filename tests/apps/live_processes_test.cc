@@ -66,7 +66,7 @@ TEST(LiveProcesses, TrackAndServoCloseTheLoopAndTheServoRetractsWhenTheTrackerGo
   // target are found in (nearly) all processed volumes.
   const int volumes = t["volumes"].get<int>(), missed = t["missed_acquisitions"].get<int>(),
             dropped = t["dropped"].get<int>();
-  EXPECT_LE(volumes + dropped + missed, 109);
+  EXPECT_LE(volumes + dropped + missed, 109) << t.dump();
   EXPECT_GE(volumes + dropped + missed, 95) << t.dump();
   EXPECT_GE(volumes, 20);
   EXPECT_GE(t["measured"].get<double>(), 0.9 * volumes);
