@@ -40,6 +40,8 @@ if(ECHOSERVO_FUZZ)
   add_link_options(-fsanitize=address,undefined)
 elseif(ECHOSERVO_SANITIZE)
   add_compile_options(${ECHOSERVO_SANITIZER_FLAGS} -O1 -g1)
+  # For the few tests that must know (GCC defines __SANITIZE_ADDRESS__, clang does not).
+  add_compile_definitions(ECHOSERVO_SANITIZED=1)
   add_link_options(-fsanitize=address,undefined -fno-sanitize-recover=all)
 endif()
 

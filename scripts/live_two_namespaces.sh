@@ -9,7 +9,8 @@
 # TBF="rate 120kbit burst 2kb latency 20ms" (a token-bucket bottleneck: packets over the
 # rate queue up to `latency`, then drop — delay and loss from congestion; tc tbf is in
 # kernels without netem). With OUT=DIR the summaries are also left in DIR
-# (track.json, servo.json). Needs root and iproute2; removes what it made on exit.
+# (track.json, servo.json). TRACK_ARGS="..." adds options to `track` (e.g. "--rate 12
+# --harmonics 3" for a slow build). Needs root and iproute2; removes what it made on exit.
 # Usage: scripts/live_two_namespaces.sh [build/bin/echoservo] [track seconds]
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -34,7 +35,7 @@ link_a="--dds-domain 7 --no-shm --interface 10.78.0.1 --peer 10.78.0.2"
 ip netns exec "$b" timeout $((seconds + 30)) "$cli" servo $link_b --auto-enable --duration $((seconds + 4)) --json \
   >"$out/servo.json" 2>"$out/servo.err" &
 servo_pid=$!
-ip netns exec "$a" timeout $((seconds + 30)) "$cli" track --sim $link_a --duration "$seconds" --json \
+ip netns exec "$a" timeout $((seconds + 30)) "$cli" track --sim $link_a ${TRACK_ARGS:-} --duration "$seconds" --json \
   >"$out/track.json" 2>"$out/track.err"
 wait "$servo_pid"
 if [[ -n "${NETEM:-}${TBF:-}" ]]; then

@@ -544,8 +544,8 @@ class LocalMaxima {
 
  private:
   static void RowMax3(const DirectionHistogram& H, int x0, int y, std::vector<float>& out) {
-    const float* r = H.row(y) + x0;
-    for (std::size_t i = 0; i < out.size(); ++i) out[i] = std::max(std::max(r[i - 1], r[i]), r[i + 1]);
+    const float* r = H.row(y) + x0 - 1;  // r[i] is bin x0 + i − 1 (the caller keeps x0 ≥ 1)
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = std::max(std::max(r[i], r[i + 1]), r[i + 2]);
   }
   std::array<std::vector<float>, 3> rows_;
   std::vector<std::int32_t> flags_;

@@ -132,6 +132,8 @@ void AddLiveCommands(CLI::App& app) {
   demo->add_option("--standoff", o.standoff_mm, "tip-to-target standoff along the axis, mm")->check(CLI::Range(0.0, 30.0));
   demo->add_option("--metrics-start", o.metrics_start_s, "figures from this time on, s")->check(CLI::Range(0.0, 3600.0));
   demo->add_option("--seed", o.seed, "simulation seed");
+  demo->add_option("--harmonics", o.harmonics, "EKF harmonics (it publishes after 2·(2·N + 4) volumes)")
+      ->check(CLI::Range(1, 12));
   demo->add_option("--sheath-id", o.sheath_id_mm, "catheter sheath inner diameter, mm (seed water tank: 1.59)");
   demo->add_option("--guidewire-od", o.guidewire_od_mm, "guidewire outer diameter, mm (seed water tank: 1.50)");
   demo->add_option("--dds-domain", o.dds_domain, "DDS domain of the tracker → servo link (loopback only)")

@@ -14,6 +14,7 @@
 #include "apps/commands/imaging_commands.h"
 #include "imaging/io/plus_sequence.h"
 #include "imaging/io/recording.h"
+#include "imaging/io/sequence_reader.h"
 #include "imaging/io/volume_io.h"
 
 namespace echoservo::apps {
@@ -26,7 +27,8 @@ nlohmann::json Describe(const std::filesystem::path& path) {
   nlohmann::json j;
   j["file"] = path.string();
   if (imaging::IsPlusSequenceFile(path)) {
-    const auto s = imaging::ReadPlusSequence(path);
+    const imaging::SequenceReader reader(path);  // header and fields; uncompressed pixels stay on disk
+    const imaging::PlusSequence& s = reader.sequence();
     j["kind"] = "sequence";
     j["frames"] = s.frames.size();
     j["dims"] = {s.frame_dims[0], s.frame_dims[1], s.frame_dims[2]};

@@ -86,6 +86,7 @@ void DemoOptions::Validate() const {
   if (!(heart_rate_bpm >= 30 && heart_rate_bpm <= 180)) bad("--heart-rate", "must be in [30, 180] bpm");
   if (!(target_p2p_mm > 0 && target_p2p_mm <= 20)) bad("--target-p2p", "must be in (0, 20] mm");
   if (!(standoff_mm >= 0 && standoff_mm <= 30)) bad("--standoff", "must be in [0, 30] mm");
+  if (!(harmonics >= 1 && harmonics <= 12)) bad("--harmonics", "must be in [1, 12]");
   if (!(metrics_start_s >= 0 && metrics_start_s < duration_s)) bad("--metrics-start", "must be in [0, duration)");
   if (save_volumes && out_dir.empty()) bad("--save-volumes", "needs --out RUN");
   if (!(dds_domain >= 0 && dds_domain <= 232)) bad("--dds-domain", "must be in [0, 232]");
@@ -134,6 +135,8 @@ DemoResult RunDemo(const DemoOptions& o) {
   TrackerNodeOptions to;
   to.link_offset_s = clock.link_offset_s();
   if (o.zero_order_hold) to.predictor = TargetPredictor::kZeroOrderHold;
+  to.ekf.harmonics = o.harmonics;
+  to.ekf.max_harmonics = std::max(to.ekf.max_harmonics, o.harmonics);
   // The volumes as the tracker receives them, each on disk before the next is taken.
   std::unique_ptr<imaging::SequenceWriter> recorder;
   if (o.save_volumes) recorder = std::make_unique<imaging::SequenceWriter>(o.out_dir / "volumes.igs.mhd");

@@ -45,6 +45,10 @@ struct DemoOptions {
   bool save_volumes = false;
   // The tracker's published motion: the EKF, or the zero-order-hold baseline.
   bool zero_order_hold = false;
+  // The EKF's harmonic count, [1, 12] (TrackerNodeOptions::DefaultEkfOptions: 8, the mitral
+  // shape's). It needs 2·(2·harmonics + 4) volumes before it publishes: 40 at 8, about 1.6 s
+  // at 25 vol/s; fewer let a slow host (a sanitizer build) start following sooner.
+  int harmonics = 8;
   double sheath_id_mm = 1.59;     // the seed's water-tank catheter (its two bends)
   double guidewire_od_mm = 1.50;
   int dds_domain = 42;            // the DDS domain of the tracker → servo link (loopback only)

@@ -245,7 +245,7 @@ TextHeader ReadTextHeader(const fs::path& path) {
 
 namespace {
 
-std::uint64_t CheckedProduct(const std::vector<std::int64_t>& dims, int element_size,
+std::uint64_t CheckedProduct(const std::vector<std::int64_t>& dims, int element_size, std::uint64_t cap,
                              const std::string& where, const std::string& dims_text) {
   std::uint64_t n = 1;
   bool zero = false;
@@ -255,15 +255,15 @@ std::uint64_t CheckedProduct(const std::vector<std::int64_t>& dims, int element_
   }
   if (zero) return 0;
   for (auto d : dims) {
-    if (n > kMaxPixelBytes / static_cast<std::uint64_t>(d)) {
-      throw std::invalid_argument(where + "sizes '" + dims_text + "' exceed the 4 GiB cap");
+    if (n > cap / static_cast<std::uint64_t>(d)) {
+      throw std::invalid_argument(where + "sizes '" + dims_text + "' exceed the " + ByteCapText(cap) + " cap");
     }
     n *= static_cast<std::uint64_t>(d);
   }
   const auto es = static_cast<std::uint64_t>(std::max(element_size, 1));
-  if (n > kMaxPixelBytes / es) {
-    throw std::invalid_argument(where + "sizes '" + dims_text + "' × " + std::to_string(es) +
-                                " bytes exceed the 4 GiB cap");
+  if (n > cap / es) {
+    throw std::invalid_argument(where + "sizes '" + dims_text + "' × " + std::to_string(es) + " bytes exceed the " +
+                                ByteCapText(cap) + " cap");
   }
   return n * static_cast<std::uint64_t>(element_size);
 }
@@ -312,7 +312,13 @@ std::vector<std::vector<double>> ParseSpaceDirections(const std::string& text,
 
 }  // namespace
 
-PixelLayout CheckPixelLayout(const TextHeader& h) {
+std::string ByteCapText(std::uint64_t bytes) {
+  if (bytes % (1ULL << 30) == 0) return std::to_string(bytes >> 30) + " GiB";
+  if (bytes % (1ULL << 20) == 0) return std::to_string(bytes >> 20) + " MiB";
+  return std::to_string(bytes) + " bytes";
+}
+
+PixelLayout CheckPixelLayout(const TextHeader& h, std::uint64_t max_pixel_bytes) {
   PixelLayout L;
   const std::string where = h.Where();
   std::string dims_text;
@@ -416,7 +422,7 @@ PixelLayout CheckPixelLayout(const TextHeader& h) {
       L.nrrd_space_origin = ParseNumbers(t, where + "space origin");
     }
   }
-  L.pixel_bytes = CheckedProduct(L.dims, L.element_size, where, dims_text);
+  L.pixel_bytes = CheckedProduct(L.dims, L.element_size, max_pixel_bytes, where, dims_text);
   bool any_pixels = true;
   for (auto d : L.dims) any_pixels = any_pixels && d > 0;
   if (any_pixels && L.element_size == 0) {

@@ -57,7 +57,9 @@ struct TextHeader {
 TextHeader ReadTextHeader(const std::filesystem::path& path);
 
 // Pixel layout a header declares, checked: dims (≥ 0 each), element type and size,
-// compression, total bytes within kMaxPixelBytes and consistent with the bytes available.
+// compression, total bytes within `max_pixel_bytes` and consistent with the bytes available.
+// Readers that allocate the whole pixel data keep the 4 GiB default; a reader that streams
+// uncompressed frames from the file may allow more (the data must still be in the file).
 struct PixelLayout {
   std::vector<std::int64_t> dims;   // DimSize / sizes, fastest first
   std::string element_type;         // MetaImage spelling, e.g. MET_UCHAR (NRRD types mapped)
@@ -69,7 +71,9 @@ struct PixelLayout {
   std::vector<std::vector<double>> nrrd_space_directions;  // one per axis; empty = "none"
   std::vector<double> nrrd_space_origin;
 };
-PixelLayout CheckPixelLayout(const TextHeader& header);
+PixelLayout CheckPixelLayout(const TextHeader& header, std::uint64_t max_pixel_bytes = kMaxPixelBytes);
+// "4 GiB" for messages about a cap in bytes.
+std::string ByteCapText(std::uint64_t bytes);
 
 // Reads and (if compressed) inflates the pixel data the layout describes. Throws naming the
 // file on a truncated/corrupt stream or a size mismatch.

@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "imaging/io/metaio_internal.h"
+#include "imaging/io/plus_sequence_internal.h"
 
 namespace echoservo::imaging {
 namespace fs = std::filesystem;
@@ -151,9 +152,14 @@ std::optional<std::string> PlusSequence::HeaderField(const std::string& key) con
   return std::nullopt;
 }
 
-PlusSequence ReadPlusSequence(const fs::path& path) {
-  const auto h = ii::ReadTextHeader(path);
-  const auto L = ii::CheckPixelLayout(h);
+namespace io_internal {
+
+SequenceHeader ReadSequenceHeader(const fs::path& path, std::uint64_t max_pixel_bytes) {
+  SequenceHeader out;
+  out.text = ReadTextHeader(path);
+  out.layout = CheckPixelLayout(out.text, max_pixel_bytes);
+  const TextHeader& h = out.text;
+  const PixelLayout& L = out.layout;
   const std::string where = h.Where();
   const bool nrrd = h.syntax == ii::HeaderSyntax::kNrrd;
   const std::size_t nd = L.dims.size();
@@ -161,7 +167,7 @@ PlusSequence ReadPlusSequence(const fs::path& path) {
     throw std::invalid_argument(where + (nrrd ? "dimension " : "NDims ") + std::to_string(nd) +
                                 ": a sequence has 3 (2D frames) or 4 (3D frames) axes");
   }
-  PlusSequence s;
+  PlusSequence& s = out.sequence;
   s.volume_frames = nd == 4;
   s.element_type = L.element_type;
   s.element_size = L.element_size;
@@ -174,6 +180,10 @@ PlusSequence ReadPlusSequence(const fs::path& path) {
   }
   if (nd == 3) s.frame_dims[2] = s.frame_dims[0] == 0 && s.frame_dims[1] == 0 ? 0 : 1;
   const std::int64_t n_frames = L.dims.back();
+  if (static_cast<std::uint64_t>(n_frames) > kMaxSequenceFrames) {
+    throw std::invalid_argument(where + "declares " + std::to_string(n_frames) + " frames, more than the " +
+                                std::to_string(kMaxSequenceFrames) + " a sequence may have");
+  }
   const bool tracker_only = s.FrameBytes() == 0;
   if (tracker_only && static_cast<std::uint64_t>(n_frames) > h.entries.size()) {
     throw std::invalid_argument(where + "declares " + std::to_string(n_frames) +
@@ -195,7 +205,7 @@ PlusSequence ReadPlusSequence(const fs::path& path) {
     auto vec = [&](const char* key, std::size_t count) -> std::optional<std::vector<double>> {
       auto v = h.Find(key);
       if (!v) return std::nullopt;
-      auto nums = ii::ParseNumbers(*v, where + key);
+      auto nums = ParseNumbers(*v, where + key);
       if (nums.size() != count) {
         throw std::invalid_argument(where + key + " has " + std::to_string(nums.size()) +
                                     " numbers, NDims = " + std::to_string(nd) + " needs " +
@@ -243,7 +253,7 @@ PlusSequence ReadPlusSequence(const fs::path& path) {
           p - digits_begin > 12) {
         throw std::invalid_argument(where + "malformed frame field name '" + e.key + "'");
       }
-      const auto index = ii::ParseInteger(e.key.substr(digits_begin, p - digits_begin), where + e.key);
+      const auto index = ParseInteger(e.key.substr(digits_begin, p - digits_begin), where + e.key);
       if (index >= n_frames) {
         throw std::invalid_argument(where + e.key + ": frame " + std::to_string(index) +
                                     " but the sizes declare " + std::to_string(n_frames) + " frames");
@@ -259,8 +269,15 @@ PlusSequence ReadPlusSequence(const fs::path& path) {
       s.header_fields.emplace_back(e.key, e.value);
     }
   }
-  if (L.pixel_bytes > 0) s.pixels = ii::ReadPixels(h, L);
-  return s;
+  return out;
+}
+
+}  // namespace io_internal
+
+PlusSequence ReadPlusSequence(const fs::path& path) {
+  ii::SequenceHeader h = ii::ReadSequenceHeader(path, ii::kMaxPixelBytes);
+  if (h.layout.pixel_bytes > 0) h.sequence.pixels = ii::ReadPixels(h.text, h.layout);
+  return std::move(h.sequence);
 }
 
 namespace {
@@ -438,20 +455,29 @@ std::string PlusSequenceDetachedHeader(const PlusSequence& s, const std::string&
 }
 
 Volume SequenceFrameToVolume(const PlusSequence& s, std::size_t frame) {
+  if (frame < s.frames.size() && s.pixels.size() >= (frame + 1) * s.FrameBytes())
+    return SequenceFrameToVolume(s, frame, s.FramePixels(frame));
+  return SequenceFrameToVolume(s, frame, {});  // the checks there name what is wrong
+}
+
+Volume SequenceFrameToVolume(const PlusSequence& s, std::size_t frame, std::span<const std::uint8_t> pixels) {
   const std::string where = "PLUS sequence frame " + std::to_string(frame) + ": ";
   if (frame >= s.frames.size()) throw std::invalid_argument(where + "no such frame");
   if (s.element_type != "MET_UCHAR" || s.element_size != 1) {
     throw std::invalid_argument(where + "ElementType " + s.element_type + " is not MET_UCHAR");
   }
   if (s.FrameBytes() == 0) throw std::invalid_argument(where + "tracker-only sequence has no images");
+  if (pixels.size() != s.FrameBytes()) {
+    throw std::invalid_argument(where + std::to_string(pixels.size()) + " bytes of pixels, the frame has " +
+                                std::to_string(s.FrameBytes()));
+  }
   VolumeGeometry g;
   g.dims = Eigen::Vector3i(s.frame_dims[0], s.frame_dims[1], s.frame_dims[2]);
   g.spacing_mm = s.spacing_mm;
   g.origin_mm = s.origin_mm;
   g.direction = s.direction;
   Volume v = Volume::Create(g);
-  const auto px = s.FramePixels(frame);
-  std::copy(px.begin(), px.end(), v.voxels().begin());
+  std::copy(pixels.begin(), pixels.end(), v.voxels().begin());
   const auto& f = s.frames[frame];
   v.set_frame_index(static_cast<std::int64_t>(frame));
   try {

@@ -20,7 +20,7 @@
 // files PLUS names the image status `Status`; it is read as `ImageStatus` so both syntaxes
 // give the same fields (and written back as `Status` to NRRD).
 //
-// Safety: sizes are checked before allocation (4 GiB cap; raw data must be present in the
+// Safety: sizes are checked before allocation (4 GiB cap, 2^20 frames; raw data must be present in the
 // file; compressed data must fit CompressedDataSize and the file, and inflate to exactly
 // the declared size). Errors: std::invalid_argument naming the file and the problem.
 #pragma once
@@ -83,7 +83,8 @@ struct PlusSequence {
   std::optional<std::string> HeaderField(const std::string& key) const;
 };
 
-// By content: NRRD magic → NRRD syntax, else MetaImage.
+// By content: NRRD magic → NRRD syntax, else MetaImage. The whole sequence, pixels included,
+// is read into memory; imaging/io/sequence_reader.h reads one frame at a time.
 PlusSequence ReadPlusSequence(const std::filesystem::path& path);
 
 // Syntax by extension: .nrrd → NRRD (gzip when compress), otherwise MetaImage (.mha; zlib
@@ -98,6 +99,9 @@ void WritePlusSequence(const PlusSequence& sequence, const std::filesystem::path
 // present and OK (they must be rigid; identity otherwise).
 std::vector<Volume> SequenceToVolumes(const PlusSequence& sequence);
 Volume SequenceFrameToVolume(const PlusSequence& sequence, std::size_t frame);
+// The same with the frame's pixels given (FrameBytes() of them; SequenceReader reads them
+// from the file), `sequence.pixels` unused.
+Volume SequenceFrameToVolume(const PlusSequence& sequence, std::size_t frame, std::span<const std::uint8_t> pixels);
 // The inverse: volumes with equal geometry → a NDims = 4 sequence (or NDims = 3 when every
 // volume has dims.z = 1) with fields Timestamp, FrameNumber, ImageStatus = OK,
 // ImageToProbeTransform(+Status), ProbeToReferenceTransform(+Status).

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "imaging/io/plus_sequence.h"
+#include "imaging/io/sequence_reader.h"
 #include "imaging/io/volume_io.h"
 
 namespace echoservo::imaging {
@@ -17,25 +18,28 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// Frames read one at a time (sequence_reader.h): memory holds one volume, whatever the
+// recording's length.
 class SequenceSource : public VolumeSource {
  public:
-  explicit SequenceSource(PlusSequence seq) : seq_(std::move(seq)) {
-    const auto n = seq_.frames.size();
+  explicit SequenceSource(std::unique_ptr<SequenceReader> reader) : reader_(std::move(reader)) {
+    const auto& frames = reader_->sequence().frames;
+    const auto n = frames.size();
     if (n >= 2) {
-      const auto t0 = seq_.frames.front().Timestamp();
-      const auto t1 = seq_.frames.back().Timestamp();
+      const auto t0 = frames.front().Timestamp();
+      const auto t1 = frames.back().Timestamp();
       if (t0 && t1 && *t1 > *t0) rate_hz_ = static_cast<double>(n - 1) / (*t1 - *t0);
     }
   }
   std::optional<SourceFrame> Next() override {
-    if (next_ >= seq_.frames.size()) return std::nullopt;
+    if (next_ >= reader_->size()) return std::nullopt;
     const std::size_t i = next_++;
-    return SourceFrame{SequenceFrameToVolume(seq_, i), TruthFromFields(seq_.frames[i].fields)};
+    return SourceFrame{reader_->ReadVolume(i), TruthFromFields(reader_->sequence().frames[i].fields)};
   }
   double nominal_rate_hz() const override { return rate_hz_; }
 
  private:
-  PlusSequence seq_;
+  std::unique_ptr<SequenceReader> reader_;
   std::size_t next_ = 0;
   double rate_hz_ = 0.0;
 };
@@ -87,7 +91,8 @@ std::unique_ptr<VolumeSource> OpenRecording(const fs::path& path) {
   }
   if (!fs::exists(path, ec)) throw std::invalid_argument(path.string() + ": no such file or folder");
   if (IsPlusSequenceFile(path)) {
-    PlusSequence seq = ReadPlusSequence(path);
+    auto reader = std::make_unique<SequenceReader>(path);
+    const PlusSequence& seq = reader->sequence();
     if (seq.FrameBytes() == 0) {
       throw std::invalid_argument(path.string() + ": tracker-only sequence (no images) cannot be replayed as volumes");
     }
@@ -95,7 +100,7 @@ std::unique_ptr<VolumeSource> OpenRecording(const fs::path& path) {
       throw std::invalid_argument(path.string() + ": ElementType " + seq.element_type +
                                   " is not supported (volumes must be MET_UCHAR)");
     }
-    return std::make_unique<SequenceSource>(std::move(seq));
+    return std::make_unique<SequenceSource>(std::move(reader));
   }
   if (!IsVolumeFile(path)) {
     throw std::invalid_argument(path.string() +

@@ -3,6 +3,7 @@ list(APPEND IMAGING_SOURCES
   io/metaio_internal.cc
   io/volume_io.cc
   io/plus_sequence.cc
+  io/sequence_reader.cc
   io/sequence_writer.cc
   io/recording.cc
   io/em_log_import.cc)

@@ -121,8 +121,9 @@ std::string Detection(const std::string& row) {
 TEST(LiveProcesses, ReplayOfARecordedDemoReproducesItsDetectionsAndScoresAgainstItsEmLog) {
   const testing::TempDir dir("live_replay", true);
   const fs::path run = dir.path() / "run", replay = dir.path() / "replay";
-  // 8 s: long enough for the tip to follow (the report needs it moving) at ASan speed too.
-  auto r = RunCli("demo --duration 8 --metrics-start 2 --save-volumes --dds-domain 64 --json --out " +
+  // 8 s with a 3-harmonic EKF (it publishes after 20 volumes): long enough for the tip to
+  // follow (the report needs it moving) at ASan speed beside other tests too.
+  auto r = RunCli("demo --duration 8 --harmonics 3 --metrics-start 2 --save-volumes --dds-domain 64 --json --out " +
                   ShellQuote(run.string()));
   ASSERT_EQ(r.rc, 0) << r.err;
   ASSERT_TRUE(fs::exists(run / "volumes.igs.mhd"));
@@ -192,8 +193,10 @@ TEST(LiveProcesses, ServoAndTrackerInTwoNamespacesThroughAnImpairedLink) {
     GTEST_SKIP() << "needs root and network namespaces";
   const testing::TempDir dir("live_netns", true);
   const std::string script = ShellQuote(std::string(ECHOSERVO_SOURCE_DIR) + "/scripts/live_two_namespaces.sh");
-  const auto r = RunShell("TBF='rate 400kbit burst 4kb latency 15ms' OUT=" + ShellQuote(dir.path().string()) +
-                          " bash " + script + " " + kCli + " 10");
+  // 12 vol/s and a 3-harmonic EKF (it publishes after 20 volumes), as in the loopback test:
+  // an ASan build beside other tests renders only ~5 vol/s.
+  const auto r = RunShell("TBF='rate 400kbit burst 4kb latency 15ms' TRACK_ARGS='--rate 12 --harmonics 3' OUT=" +
+                          ShellQuote(dir.path().string()) + " bash " + script + " " + kCli + " 10");
   ASSERT_EQ(r.rc, 0) << r.out << r.err;
   const auto t = ParseFile(dir.path() / "track.json"), s = ParseFile(dir.path() / "servo.json");
   ASSERT_FALSE(t.is_discarded());
@@ -202,9 +205,9 @@ TEST(LiveProcesses, ServoAndTrackerInTwoNamespacesThroughAnImpairedLink) {
   std::printf("track published %d, servo accepted %d, limit violations %d, final mode %s\n",
               t["published"].get<int>(), s["estimates_accepted"].get<int>(), s["limit_violations"].get<int>(),
               s["final_mode"].get<std::string>().c_str());
-  // Through the bottleneck most estimates arrive (150 of 150 in Release; fewer are
-  // published at ASan speed).
-  EXPECT_GE(t["published"].get<int>(), 5);
+  // Through the bottleneck most estimates arrive (all in Release; fewer are published at
+  // ASan speed).
+  EXPECT_GE(t["published"].get<int>(), 10);
   EXPECT_GE(s["estimates_accepted"].get<double>(), 0.5 * t["published"].get<double>());
   EXPECT_EQ(s["limit_violations"].get<int>(), 0);
   // The tracker ends 4 s before the servo: the servo ends in its safe state.
@@ -215,7 +218,8 @@ TEST(LiveProcesses, ServoAndTrackerInTwoNamespacesThroughAnImpairedLink) {
 // cuts its stream in the middle of a volume and stops listening for 2.5 s, then serves
 // again. The tracker's ingest counts the truncated message and reconnects; the servo holds
 // then retracts while no estimate comes, follows again once they return, and never
-// commands outside a limit.
+// commands outside a limit. The EKF has 3 harmonics (it publishes after 20 volumes): an
+// ASan build renders ~6 vol/s, and 8 harmonics (40 volumes) would start only after the outage.
 TEST(LiveProcesses, AScannerThatTruncatesDisconnectsAndReconnectsLeavesTheServoSafe) {
   const testing::TempDir dir("live_scanner_faults", true);
   const fs::path servo = dir.path() / "servo.json", track = dir.path() / "track.json",
@@ -225,7 +229,7 @@ TEST(LiveProcesses, AScannerThatTruncatesDisconnectsAndReconnectsLeavesTheServoS
       kCli + " servo --duration 19 --auto-enable" + link + " > " + ShellQuote(servo.string()) + " & " +
       ShellQuote(IGTL_FAULT_SCANNER) + " " + ShellQuote(port.string()) + " 6 2.5 6 > " + ShellQuote(scanner.string()) +
       " & for i in $(seq 1 100); do [ -s " + ShellQuote(port.string()) + " ] && break; sleep 0.1; done; " + kCli +
-      " track --connect 127.0.0.1:$(cat " + ShellQuote(port.string()) + ") --duration 16" + link + " > " +
+      " track --connect 127.0.0.1:$(cat " + ShellQuote(port.string()) + ") --harmonics 3 --duration 16" + link + " > " +
       ShellQuote(track.string()) + "; rc=$?; wait; exit $rc");
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto sc = ParseFile(scanner), t = ParseFile(track), s = ParseFile(servo);

@@ -146,7 +146,7 @@ TEST(ModelSpec, DuplicatesThrowNamingTheEffect) {
       {"sensor_delay+sensor_delay", "sensor_delay"},
       {"seed+seed", "coulomb_friction"}};
   for (const auto& [spec, dup] : cases) {
-    const std::string msg = InvalidArgumentMessage([&] { ParseModelSpec(spec, Registry()); });
+    const std::string msg = InvalidArgumentMessage([&spec = spec] { ParseModelSpec(spec, Registry()); });
     ExpectContains(msg, "'" + dup + "'");
     ExpectContains(msg, "twice");
   }

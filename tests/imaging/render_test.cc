@@ -281,7 +281,7 @@ TEST(RenderCli, ThreeDUnderXvfb) {
   // in ./.Xauthority by default, shared by every test started in this directory, and two
   // -a starts can race for the same number. Under load Xvfb can also be slow to accept
   // clients, so a failure to open the display is retried.
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(ECHOSERVO_SANITIZED)
   // Sanitizer build only: no leak check in this process. At exit LeakSanitizer reports
   // ~240 bytes allocated from a module that is no longer mapped (the OpenGL driver that
   // libGLX dlopens and dlcloses under Xvfb; echoservo itself dlopens nothing), so the leak

@@ -13,6 +13,7 @@
 
 #include "imaging/io/plus_sequence.h"
 #include "imaging/io/recording.h"
+#include "tests/imaging/sequence_test_frames.h"
 #include "tests/test_util/expect_error.h"
 #include "tests/test_util/temp_dir.h"
 
@@ -22,39 +23,9 @@ namespace {
 namespace fs = std::filesystem;
 using testing::ExpectContains;
 using testing::InvalidArgumentMessage;
-
-VolumeGeometry Geometry(int nx = 24, int ny = 20, int nz = 16) {
-  VolumeGeometry g;
-  g.dims = Eigen::Vector3i(nx, ny, nz);
-  g.spacing_mm = Eigen::Vector3d(0.5, 0.6, 0.7);
-  g.origin_mm = Eigen::Vector3d(-5.0, 2.0, 10.0);
-  g.direction = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  return g;
-}
-
-// Frame i: every voxel a function of i and its index, so a frame out of place shows.
-Volume Frame(int i, const VolumeGeometry& g = Geometry()) {
-  Volume v = Volume::Create(g);
-  auto px = v.voxels();
-  for (std::size_t k = 0; k < px.size(); ++k) px[k] = static_cast<std::uint8_t>((k * 7 + static_cast<std::size_t>(i) * 31) & 0xff);
-  v.set_frame_index(100 + i);
-  v.set_timestamp_s(12.5 + 0.04 * i);
-  Eigen::Isometry3d image_to_probe = Eigen::Isometry3d::Identity();
-  image_to_probe.translation() = Eigen::Vector3d(1.0, -2.0, 0.25 * i);
-  v.set_image_to_probe(image_to_probe);
-  return v;
-}
-
-void ExpectFrame(const PlusSequence& s, std::size_t frame, int i) {
-  const Volume expected = Frame(i);
-  const Volume got = SequenceFrameToVolume(s, frame);
-  EXPECT_TRUE(got.geometry() == expected.geometry());
-  EXPECT_EQ(got.frame_index(), expected.frame_index());
-  EXPECT_DOUBLE_EQ(got.timestamp_s(), expected.timestamp_s());
-  EXPECT_TRUE(got.image_to_probe().isApprox(expected.image_to_probe(), 1e-12));
-  ASSERT_TRUE(std::equal(got.voxels().begin(), got.voxels().end(), expected.voxels().begin(), expected.voxels().end()))
-      << "frame " << frame;
-}
+using test_frames::ExpectFrame;
+using test_frames::Frame;
+using test_frames::Geometry;
 
 TEST(SequenceWriter, WhatItWritesReadsBackExactlyAfterEveryFrame) {
   const testing::TempDir dir("seqw", true);
