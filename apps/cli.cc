@@ -6,7 +6,7 @@
 
 #include "apps/commands/bench_commands.h"
 #include "apps/commands/imaging_commands.h"
-#include "apps/commands/lab_commands.h"
+#include "apps/commands/lab_command.h"
 #include "apps/commands/live_commands.h"
 #include "apps/commands/motion_commands.h"
 #include "apps/commands/report_command.h"
@@ -24,7 +24,9 @@ int RunCli(int argc, char** argv) {
   AddInfoCommand(app);
   AddDetectCommand(app);
   AddRenderCommand(app);
-  AddStreamCommands(app);
+  AddScannerCommand(app);
+  AddIngestCommand(app);
+  AddReplayCommand(app);
   AddBenchCommands(app);
   AddLiveCommands(app);
   AddReportCommand(app);

@@ -42,7 +42,7 @@ struct Args {
   int samples = 5000;
   double rate_hz = 1000.0;
   bool json = false;
-  bool publisher = false;  // the child role, or one host's side
+  bool publisher = false;   // the child role, or one host's side
   bool subscriber = false;  // the other host's side
   int domain = 0;
   bool loopback = true;
@@ -59,16 +59,26 @@ Args Parse(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     const auto value = [&] { return i + 1 < argc ? argv[++i] : "0"; };
-    if (arg == "--samples") a.samples = std::atoi(value());
-    else if (arg == "--rate") a.rate_hz = std::atof(value());
-    else if (arg == "--json") a.json = true;
-    else if (arg == "--publisher") a.publisher = true;
-    else if (arg == "--domain") a.domain = std::atoi(value());
-    else if (arg == "--subscriber") a.subscriber = true;
-    else if (arg == "--transport") a.loopback = std::string(value()) == "loopback";
-    else if (arg == "--peer") a.peers.push_back(value());
-    else if (arg == "--interface") a.interfaces.push_back(value());
-    else if (arg == "--no-shm") a.shared_memory = false;
+    if (arg == "--samples")
+      a.samples = std::atoi(value());
+    else if (arg == "--rate")
+      a.rate_hz = std::atof(value());
+    else if (arg == "--json")
+      a.json = true;
+    else if (arg == "--publisher")
+      a.publisher = true;
+    else if (arg == "--domain")
+      a.domain = std::atoi(value());
+    else if (arg == "--subscriber")
+      a.subscriber = true;
+    else if (arg == "--transport")
+      a.loopback = std::string(value()) == "loopback";
+    else if (arg == "--peer")
+      a.peers.push_back(value());
+    else if (arg == "--interface")
+      a.interfaces.push_back(value());
+    else if (arg == "--no-shm")
+      a.shared_memory = false;
     else if (arg == "--secure") {
       a.secure_dir = value();
       a.use_secure = true;
@@ -95,7 +105,8 @@ dl::ParticipantOptions Options(const Args& a, const char* name, const char* role
 void Publish(dl::Participant& participant, int samples, double rate_hz, bool secure) {
   dl::TargetPublisher pub(participant);
   if (!pub.WaitForSubscribers(1, 30.0)) return;
-  std::this_thread::sleep_for(std::chrono::milliseconds(secure ? 1000 : 500));  // the handshake's tail
+  std::this_thread::sleep_for(
+      std::chrono::milliseconds(secure ? 1000 : 500));  // the handshake's tail
   dl::TargetEstimateSample s;
   s.axis = Eigen::Vector3d::UnitZ();
   s.motion.cos_mm = {3.0, -0.5, 0.2, 0.1};
@@ -139,10 +150,11 @@ Result Measure(const std::string& name, const Args& a, Start start, Join join) {
   latency_us.reserve(static_cast<std::size_t>(a.samples));
   dl::ValidationLimits limits;
   limits.max_target_age_s = 10.0;
-  dl::TargetSubscriber sub(participant, limits, [&](const dl::TargetEstimateSample& s, double received_s) {
-    std::lock_guard lock(mu);
-    latency_us.push_back(1e6 * (received_s - s.publication_time_s));
-  });
+  dl::TargetSubscriber sub(participant, limits,
+                           [&](const dl::TargetEstimateSample& s, double received_s) {
+                             std::lock_guard lock(mu);
+                             latency_us.push_back(1e6 * (received_s - s.publication_time_s));
+                           });
   const auto received = [&] {
     std::lock_guard lock(mu);
     return latency_us.size();
@@ -167,16 +179,11 @@ Result TwoProcesses(const char* self, Args a, bool loopback) {
   a.loopback = loopback;
   pid_t pid = -1;
   const auto start = [&] {
-    std::vector<std::string> args = {self,
-                                     "--publisher",
-                                     "--domain",
-                                     std::to_string(a.domain),
-                                     "--transport",
-                                     loopback ? "loopback" : "default",
-                                     "--samples",
-                                     std::to_string(a.samples),
-                                     "--rate",
-                                     std::to_string(a.rate_hz)};
+    std::vector<std::string> args = {self,          "--publisher",
+                                     "--domain",    std::to_string(a.domain),
+                                     "--transport", loopback ? "loopback" : "default",
+                                     "--samples",   std::to_string(a.samples),
+                                     "--rate",      std::to_string(a.rate_hz)};
     if (a.use_secure) {
       args.push_back("--secure");
       args.push_back(a.secure_dir);
@@ -189,7 +196,8 @@ Result TwoProcesses(const char* self, Args a, bool loopback) {
   const auto join = [&](const auto&) {
     if (pid > 0) waitpid(pid, nullptr, 0);
   };
-  return Measure(std::string("two processes, ") + (loopback ? "UDP loopback only" : "default transports (SHM)") +
+  return Measure(std::string("two processes, ") +
+                     (loopback ? "UDP loopback only" : "default transports (SHM)") +
                      (a.use_secure ? ", DDS-Security" : ""),
                  a, start, join);
 }
@@ -203,7 +211,9 @@ Result InProcess(Args a) {
     publisher = std::thread([&] { Publish(*participant, a.samples, a.rate_hz, a.use_secure); });
   };
   const auto join = [&](const auto&) { publisher.join(); };
-  return Measure(std::string("one process, two participants") + (a.use_secure ? ", DDS-Security" : ""), a, start, join);
+  return Measure(
+      std::string("one process, two participants") + (a.use_secure ? ", DDS-Security" : ""), a,
+      start, join);
 }
 
 // The other host publishes: wait for all samples, or 2 s without a new one after the
@@ -213,37 +223,43 @@ Result OtherHost(const Args& a) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(120);
     std::size_t seen = 0;
     auto last_growth = std::chrono::steady_clock::now();
-    while (std::chrono::steady_clock::now() < end && received() < static_cast<std::size_t>(a.samples)) {
+    while (std::chrono::steady_clock::now() < end &&
+           received() < static_cast<std::size_t>(a.samples)) {
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
       const std::size_t now_seen = received();
       if (now_seen != seen) {
         seen = now_seen;
         last_growth = std::chrono::steady_clock::now();
-      } else if (seen > 0 && std::chrono::steady_clock::now() - last_growth > std::chrono::seconds(2)) {
+      } else if (seen > 0 &&
+                 std::chrono::steady_clock::now() - last_growth > std::chrono::seconds(2)) {
         break;
       }
     }
   };
-  return Measure("from the other host", a, [] {}, join);
+  return Measure(
+      "from the other host", a, [] {}, join);
 }
 
 void Print(const Args& a, const std::vector<Result>& results) {
   if (a.json) {
-    std::printf("{\"samples\": %d, \"rate_hz\": %g, \"topic\": \"%s\", \"runs\": [", a.samples, a.rate_hz,
-                std::string(dl::kTargetTopic).c_str());
+    std::printf("{\"samples\": %d, \"rate_hz\": %g, \"topic\": \"%s\", \"runs\": [", a.samples,
+                a.rate_hz, std::string(dl::kTargetTopic).c_str());
     for (std::size_t i = 0; i < results.size(); ++i) {
       const Result& r = results[i];
-      std::printf("%s{\"name\": \"%s\", \"received\": %zu, \"lost\": %llu, \"p50_us\": %.1f, \"p90_us\": %.1f, "
-                  "\"p99_us\": %.1f, \"max_us\": %.1f}",
-                  i == 0 ? "" : ", ", r.name.c_str(), r.received, static_cast<unsigned long long>(r.lost), r.p50_us,
-                  r.p90_us, r.p99_us, r.max_us);
+      std::printf(
+          "%s{\"name\": \"%s\", \"received\": %zu, \"lost\": %llu, \"p50_us\": %.1f, \"p90_us\": "
+          "%.1f, "
+          "\"p99_us\": %.1f, \"max_us\": %.1f}",
+          i == 0 ? "" : ", ", r.name.c_str(), r.received, static_cast<unsigned long long>(r.lost),
+          r.p50_us, r.p90_us, r.p99_us, r.max_us);
     }
     std::printf("]}\n");
     return;
   }
-  std::printf("DDS one-way latency, %s, %d samples at %g Hz\n", std::string(dl::kTargetTopic).c_str(), a.samples,
-              a.rate_hz);
-  std::printf("%-64s %9s %6s %9s %9s %9s %9s\n", "run", "received", "lost", "p50 µs", "p90 µs", "p99 µs", "max µs");
+  std::printf("DDS one-way latency, %s, %d samples at %g Hz\n",
+              std::string(dl::kTargetTopic).c_str(), a.samples, a.rate_hz);
+  std::printf("%-64s %9s %6s %9s %9s %9s %9s\n", "run", "received", "lost", "p50 µs", "p90 µs",
+              "p99 µs", "max µs");
   for (const Result& r : results) {
     std::printf("%-64s %9zu %6llu %9.1f %9.1f %9.1f %9.1f\n", r.name.c_str(), r.received,
                 static_cast<unsigned long long>(r.lost), r.p50_us, r.p90_us, r.p99_us, r.max_us);
@@ -270,7 +286,8 @@ int main(int argc, char** argv) {
   // Each run without, then with DDS-Security, in this session.
   Args plain = a;
   plain.use_secure = false;
-  Print(a, {TwoProcesses(argv[0], plain, true), TwoProcesses(argv[0], a, true), TwoProcesses(argv[0], plain, false),
-            TwoProcesses(argv[0], a, false), InProcess(plain), InProcess(a)});
+  Print(a, {TwoProcesses(argv[0], plain, true), TwoProcesses(argv[0], a, true),
+            TwoProcesses(argv[0], plain, false), TwoProcesses(argv[0], a, false), InProcess(plain),
+            InProcess(a)});
   return 0;
 }

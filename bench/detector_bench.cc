@@ -26,7 +26,6 @@ using echoservo::imaging::sim::SimulatedScanner;
 using echoservo::imaging::sim::SimulatedScannerOptions;
 using namespace echoservo::tracking;
 
-
 struct Pose {
   double yaw_deg, tilt_deg, depth_mm, lateral_mm, sound_speed_m_s;
 };
@@ -34,7 +33,8 @@ struct Pose {
 // Catheter and annulus poses as in tests/tracking/radon_detector_test.cc (Options()).
 SimulatedScannerOptions ScannerOptions(const Pose& c) {
   SimulatedScannerOptions o;
-  echoservo::imaging::sim::PlaceCatheterScene({c.yaw_deg, c.tilt_deg, c.depth_mm, c.lateral_mm, 0.0}, o);
+  echoservo::imaging::sim::PlaceCatheterScene(
+      {c.yaw_deg, c.tilt_deg, c.depth_mm, c.lateral_mm, 0.0}, o);
   o.medium_sound_speed_m_s = c.sound_speed_m_s;
   o.reverberation = true;
   return o;
@@ -59,7 +59,9 @@ struct Sample {
 const std::vector<Sample>& Samples() {
   static const std::vector<Sample> samples = [] {
     std::vector<Sample> out;
-    const std::vector<Pose> poses = {{0, 10, 60, 0, 1482}, {30, 5, 55, -5, 1482}, {-20, 15, 70, 5, 1540},
+    const std::vector<Pose> poses = {{0, 10, 60, 0, 1482},
+                                     {30, 5, 55, -5, 1482},
+                                     {-20, 15, 70, 5, 1540},
                                      {180, 10, 50, 0, 1482}};
     const RadonDetectorOptions o;
     const RadonDetector detector(o);
@@ -73,7 +75,8 @@ const std::vector<Sample>& Samples() {
       s.background = MedianNonZeroVoxel(v);
       s.fine_grid = MaxPool(v, 2);
       s.coarse_grid = MaxPool(s.fine_grid, 2);
-      s.coarse = MakeRadonLevel(v, s.coarse_grid, o.max_depth_fraction, nullptr, o.level_min_contrast);
+      s.coarse =
+          MakeRadonLevel(v, s.coarse_grid, o.max_depth_fraction, nullptr, o.level_min_contrast);
       s.fine = MakeRadonLevel(v, s.fine_grid, o.max_depth_fraction, nullptr, o.level_min_contrast);
       s.coarse_best = SearchDirections(s.coarse, FibonacciHemisphere(o.coarse_directions), nullptr);
       s.search_line = PeakLine(s.coarse, s.coarse_best.direction, s.coarse_best.peak);
@@ -99,8 +102,13 @@ void Cycle(benchmark::State& state, Body body) {
   }
 }
 
-#define DETECTOR_BENCHMARK(name)                                                               \
-  BENCHMARK(name)->ArgName("threads")->Arg(2)->Arg(1)->UseRealTime()->MeasureProcessCPUTime() \
+#define DETECTOR_BENCHMARK(name) \
+  BENCHMARK(name)                \
+      ->ArgName("threads")       \
+      ->Arg(2)                   \
+      ->Arg(1)                   \
+      ->UseRealTime()            \
+      ->MeasureProcessCPUTime()  \
       ->Unit(benchmark::kMillisecond)
 
 void BM_DetectFull(benchmark::State& state) {
@@ -163,8 +171,10 @@ DETECTOR_BENCHMARK(BM_MaxPool);
 void BM_MakeLevels(benchmark::State& state) {
   const RadonDetectorOptions o;
   Cycle(state, [&](const Sample& s) {
-    const RadonLevel coarse = MakeRadonLevel(s.volume, s.coarse_grid, o.max_depth_fraction, nullptr, o.level_min_contrast);
-    const RadonLevel fine = MakeRadonLevel(s.volume, s.fine_grid, o.max_depth_fraction, nullptr, o.level_min_contrast);
+    const RadonLevel coarse = MakeRadonLevel(s.volume, s.coarse_grid, o.max_depth_fraction, nullptr,
+                                             o.level_min_contrast);
+    const RadonLevel fine =
+        MakeRadonLevel(s.volume, s.fine_grid, o.max_depth_fraction, nullptr, o.level_min_contrast);
     benchmark::DoNotOptimize(fine.cells.data());
   });
 }
@@ -178,8 +188,15 @@ void BM_MakeRadonLevel(benchmark::State& state) {
     benchmark::DoNotOptimize(level.cells.data());
   });
 }
-BENCHMARK(BM_MakeRadonLevel)->ArgNames({"threads", "factor"})->Args({2, 4})->Args({2, 2})->Args({1, 4})->Args({1, 2})
-    ->UseRealTime()->MeasureProcessCPUTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_MakeRadonLevel)
+    ->ArgNames({"threads", "factor"})
+    ->Args({2, 4})
+    ->Args({2, 2})
+    ->Args({1, 4})
+    ->Args({1, 2})
+    ->UseRealTime()
+    ->MeasureProcessCPUTime()
+    ->Unit(benchmark::kMillisecond);
 
 // The hemisphere search as the detector runs it (coarse to fine over the directions).
 void BM_SearchCoarse(benchmark::State& state) {
@@ -205,7 +222,8 @@ DETECTOR_BENCHMARK(BM_SearchCoarseAllDirections);
 void BM_SearchFine(benchmark::State& state) {
   const RadonDetectorOptions o;
   Cycle(state, [&](const Sample& s) {
-    RadonWindow near{PeakLine(s.coarse, s.coarse_best.direction, s.coarse_best.peak), 2 * s.coarse.bin_mm};
+    RadonWindow near{PeakLine(s.coarse, s.coarse_best.direction, s.coarse_best.peak),
+                     2 * s.coarse.bin_mm};
     Eigen::Vector3d d = s.coarse_best.direction;
     double cone = o.fine_cone_rad;
     for (int pass = 0; pass < 2; ++pass) {
@@ -223,19 +241,25 @@ DETECTOR_BENCHMARK(BM_SearchFine);
 
 void BM_FitEchoAxis(benchmark::State& state) {
   const RadonDetectorOptions o;
-  Cycle(state, [&](const Sample& s) { benchmark::DoNotOptimize(FitEchoAxis(s.volume, s.search_line, s.background, o.fit)); });
+  Cycle(state, [&](const Sample& s) {
+    benchmark::DoNotOptimize(FitEchoAxis(s.volume, s.search_line, s.background, o.fit));
+  });
 }
 DETECTOR_BENCHMARK(BM_FitEchoAxis);
 
 void BM_FindTip(benchmark::State& state) {
   const RadonDetectorOptions o;
-  Cycle(state, [&](const Sample& s) { benchmark::DoNotOptimize(FindTip(s.volume, s.axis, s.background, o.edge)); });
+  Cycle(state, [&](const Sample& s) {
+    benchmark::DoNotOptimize(FindTip(s.volume, s.axis, s.background, o.edge));
+  });
 }
 DETECTOR_BENCHMARK(BM_FindTip);
 
 void BM_FindTarget(benchmark::State& state) {
   const RadonDetectorOptions o;
-  Cycle(state, [&](const Sample& s) { benchmark::DoNotOptimize(FindTarget(s.volume, s.tip, s.background, o.edge)); });
+  Cycle(state, [&](const Sample& s) {
+    benchmark::DoNotOptimize(FindTarget(s.volume, s.tip, s.background, o.edge));
+  });
 }
 DETECTOR_BENCHMARK(BM_FindTarget);
 
@@ -243,7 +267,8 @@ void BM_Tubularity(benchmark::State& state) {
   const RadonDetectorOptions o;
   Cycle(state, [&](const Sample& s) {
     const double to = s.tip.axis.Parameter(s.tip.tip_mm);
-    benchmark::DoNotOptimize(Tubularity(s.volume, s.tip.axis, to - s.tip.line_length_mm, to, o.edge.dynamic_range_db, o.tube));
+    benchmark::DoNotOptimize(Tubularity(s.volume, s.tip.axis, to - s.tip.line_length_mm, to,
+                                        o.edge.dynamic_range_db, o.tube));
   });
 }
 DETECTOR_BENCHMARK(BM_Tubularity);
@@ -254,10 +279,11 @@ void BM_TrackingLevels(benchmark::State& state) {
   const RadonDetectorOptions o;
   Cycle(state, [&](const Sample& s) {
     const RadonWindow roi{s.previous.axis, o.tracking_window_mm + 4 * s.coarse.bin_mm};
-    const RadonLevel coarse = MakeRadonLevel(s.volume, MaxPool(s.volume, 4, roi), o.max_depth_fraction, &roi,
-                                             s.previous.baseline.coarse);
-    const RadonLevel fine = MakeRadonLevel(s.volume, MaxPool(s.volume, 2, roi), o.max_depth_fraction, &roi,
-                                           s.previous.baseline.fine);
+    const RadonLevel coarse =
+        MakeRadonLevel(s.volume, MaxPool(s.volume, 4, roi), o.max_depth_fraction, &roi,
+                       s.previous.baseline.coarse);
+    const RadonLevel fine = MakeRadonLevel(s.volume, MaxPool(s.volume, 2, roi),
+                                           o.max_depth_fraction, &roi, s.previous.baseline.fine);
     benchmark::DoNotOptimize(fine.cells.data());
   });
 }

@@ -58,13 +58,15 @@ void Ingest(const char* label, bool libigtl_crc, int frames) {
   const auto s = client.stats();
   const auto ss = server.stats();
   std::printf(
-      "%-22s frames %lld accepted %lld rejected %lld dropped %lld | %.1f vol/s (%.1f after the first) "
-      "%.0f MB/s | latency ms p50 %.2f p99 %.2f | receive ms p50 %.2f p99 %.2f | encode %.2f ms/frame\n",
+      "%-22s frames %lld accepted %lld rejected %lld dropped %lld | %.1f vol/s (%.1f after the "
+      "first) "
+      "%.0f MB/s | latency ms p50 %.2f p99 %.2f | receive ms p50 %.2f p99 %.2f | encode %.2f "
+      "ms/frame\n",
       label, static_cast<long long>(consumed), static_cast<long long>(s.frames),
       static_cast<long long>(s.rejected), static_cast<long long>(s.dropped),
       static_cast<double>(consumed) / total_s, static_cast<double>(consumed - 1) / steady_s,
-      static_cast<double>(s.bytes) / total_s / 1e6, s.latency.p50_ms, s.latency.p99_ms, s.receive.p50_ms,
-      s.receive.p99_ms, ss.encode_ms_mean);
+      static_cast<double>(s.bytes) / total_s / 1e6, s.latency.p50_ms, s.latency.p99_ms,
+      s.receive.p50_ms, s.receive.p99_ms, ss.encode_ms_mean);
 }
 
 }  // namespace
@@ -75,13 +77,15 @@ int main(int argc, char** argv) {
   const auto frame = phantom.Next();
   const auto& v = frame->volume;
   const auto voxels = v.voxels();
-  std::printf("volume %dx%dx%d uint8 = %zu bytes\n", v.dims().x(), v.dims().y(), v.dims().z(), voxels.size());
+  std::printf("volume %dx%dx%d uint8 = %zu bytes\n", v.dims().x(), v.dims().y(), v.dims().z(),
+              voxels.size());
 
   std::uint64_t sink = 0;
   const double lib_ms = TimeMs(10, [&] { sink ^= igtl::Crc64Ecma182LibIgtl(voxels); });
   const double fast_ms = TimeMs(30, [&] { sink ^= igtl::Crc64Ecma182(voxels); });
   const double gb = static_cast<double>(voxels.size()) / 1e9;
-  std::printf("CRC-64 libOpenIGTLink crc64: %.2f ms/volume  %.2f GB/s\n", lib_ms, gb / (lib_ms / 1e3));
+  std::printf("CRC-64 libOpenIGTLink crc64: %.2f ms/volume  %.2f GB/s\n", lib_ms,
+              gb / (lib_ms / 1e3));
   std::printf("CRC-64 slice-by-8:           %.2f ms/volume  %.2f GB/s  (x%.1f)  [same value: %s]\n",
               fast_ms, gb / (fast_ms / 1e3), lib_ms / fast_ms,
               igtl::Crc64Ecma182(voxels) == igtl::Crc64Ecma182LibIgtl(voxels) ? "yes" : "NO");
@@ -91,8 +95,9 @@ int main(int argc, char** argv) {
   const double enc_lib_ms = TimeMs(10, [&] { sink ^= igtl::EncodeImageLibIgtl(v).size(); });
   igtl::EncodeImage(v, {}, buffer);
   const double dec_ms = TimeMs(30, [&] { sink ^= igtl::DecodeMessage(buffer, {}).header.crc; });
-  std::printf("encode: echoservo %.2f ms, igtl::ImageMessage::Pack %.2f ms; decode+validate %.2f ms\n", enc_ms,
-              enc_lib_ms, dec_ms);
+  std::printf(
+      "encode: echoservo %.2f ms, igtl::ImageMessage::Pack %.2f ms; decode+validate %.2f ms\n",
+      enc_ms, enc_lib_ms, dec_ms);
 
   Ingest("loopback, slice-by-8", false, frames);
   Ingest("loopback, libigtl crc", true, frames / 2);

@@ -21,20 +21,20 @@
 #include <memory>
 #include <string>
 
-#include "control/record_experiment.h"
-#include "estimation/diagnosis.h"
-#include "estimation/model_fit.h"
+#include "control/experiments/record_experiment.h"
 #include "hw/effect_registry.h"
+#include "lab/diagnosis.h"
+#include "lab/model_fit.h"
 
 namespace {
 
-using echoservo::estimation::Diagnose;
-using echoservo::estimation::DiagnoseOptions;
-using echoservo::estimation::Diagnosis;
-using echoservo::estimation::FitModel;
-using echoservo::estimation::FitOptions;
-using echoservo::estimation::FitResult;
-using echoservo::estimation::LabDataset;
+using echoservo::lab::Diagnose;
+using echoservo::lab::DiagnoseOptions;
+using echoservo::lab::Diagnosis;
+using echoservo::lab::FitModel;
+using echoservo::lab::FitOptions;
+using echoservo::lab::FitResult;
+using echoservo::lab::LabDataset;
 
 const LabDataset& Dataset() {
   static const std::unique_ptr<LabDataset> dataset = [] {
@@ -50,7 +50,7 @@ const LabDataset& Dataset() {
     o.trajectories = {"sine:4:0.8", "mitral"};
     o.duration_s = 7.0;
     echoservo::control::RecordDataset(o);
-    auto ds = std::make_unique<LabDataset>(echoservo::estimation::LoadLabDataset(dir));
+    auto ds = std::make_unique<LabDataset>(echoservo::lab::LoadLabDataset(dir));
     std::filesystem::remove_all(dir);
     return ds;
   }();

@@ -6,7 +6,7 @@
 
 #include <numbers>
 
-#include "control/synthetic_motion.h"
+#include "control/experiments/synthetic_motion.h"
 #include "estimation/heartbeat_ekf.h"
 #include "estimation/motion_trace.h"
 #include "estimation/slow_trend.h"

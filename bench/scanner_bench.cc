@@ -27,10 +27,17 @@ void BM_ScannerNext(benchmark::State& state) {
     auto f = scanner.Next();
     benchmark::DoNotOptimize(f->volume.voxels().data());
   }
-  state.counters["vol/s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["vol/s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_ScannerNext)->ArgNames({"threads", "catheter"})->Args({2, 1})->Args({1, 1})->Args({2, 0})
-    ->UseRealTime()->MeasureProcessCPUTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ScannerNext)
+    ->ArgNames({"threads", "catheter"})
+    ->Args({2, 1})
+    ->Args({1, 1})
+    ->Args({2, 0})
+    ->UseRealTime()
+    ->MeasureProcessCPUTime()
+    ->Unit(benchmark::kMillisecond);
 
 void BM_ScanConversion(benchmark::State& state) {
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism,
@@ -43,9 +50,16 @@ void BM_ScanConversion(benchmark::State& state) {
     conv.Convert(polar, v);
     benchmark::DoNotOptimize(v.voxels().data());
   }
-  state.counters["vol/s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["vol/s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_ScanConversion)->ArgNames({"threads"})->Arg(2)->Arg(1)->UseRealTime()->MeasureProcessCPUTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ScanConversion)
+    ->ArgNames({"threads"})
+    ->Arg(2)
+    ->Arg(1)
+    ->UseRealTime()
+    ->MeasureProcessCPUTime()
+    ->Unit(benchmark::kMillisecond);
 
 void BM_ScannerConstruction(benchmark::State& state) {
   for (auto _ : state) {

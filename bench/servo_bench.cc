@@ -22,8 +22,8 @@
 #include <string>
 
 #include "control/backlash_compensation.h"
+#include "control/experiments/track_experiment.h"
 #include "control/servo_loop.h"
-#include "control/track_experiment.h"
 #include "control/trajectory.h"
 #include "hw/seed_plant.h"
 #include "hw/simulated_catheter.h"

@@ -1,22 +1,13 @@
 // Backlash compensation: turns the desired tip trajectory into a base command.
 //
-// A compensator sees the reference (known ahead of time: a test trajectory or the
-// estimator's Fourier prediction) and the measured tip, and returns the base position
-// and velocity to command (mm, mm/s). Implementations:
-//  - NoCompensation: base = reference.
-//  - StaticInverse: the inverse deadzone with a fixed width (the geometric θ·gap or a
-//    calibrated one): base = r + s·W/2, s the direction of motion; the switch of s is
-//    taken `lead` seconds early so the base has crossed half the deadzone when the
-//    reference reverses (lead = √(W/a_max), half a bang-bang crossing). With a
-//    `time_advance_s` τ the reference is read τ ahead, r(t + τ): the tip lags the
-//    base command by the position loop's and the transmission's lag, and a predicted
-//    reference (the estimator's Fourier model) can be read ahead at no cost.
-//  - IterativeInverse: the seed's offline method, a time-indexed correction table
-//    updated between runs by adding the previous run's tip error (P-type learning).
-//  - AdaptiveInverse: the static inverse whose width, lag and offset are estimated
-//    online by recursive least squares on the tip error during engaged motion:
-//    e = r − tip ≈ s·(W − Ŵ)/2 + (τ − τ̂)·ṙ + (o − ô), so it converges within a run.
-// Extension point: derive from BacklashCompensator and implement DoCalc.
+// A BacklashCompensator sees the reference r (known ahead of time: a test trajectory or the
+// estimator's Fourier prediction) and the measured tip (mm), and returns the base position
+// and velocity to command (mm, mm/s). Implementations: NoCompensation (base = r);
+// StaticInverse (a fixed deadzone width, the switch taken early, an optional time advance);
+// IterativeInverse (the seed's between-runs learning table); AdaptiveInverse (width, lag and
+// offset estimated online by RLS). Extension point: derive and implement DoCalc.
+// Errors: std::invalid_argument for invalid parameters (see each constructor and options).
+// Details: docs/control.md#backlash-compensation
 #pragma once
 
 #include <Eigen/Core>

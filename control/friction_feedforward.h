@@ -2,7 +2,7 @@
 //
 // F_ff = F_c·tanh(v/v_ε) + b·v + m·a, evaluated on the shaped setpoint's velocity v
 // (mm/s) and acceleration a (mm/s²), so the PID only corrects what the model misses.
-// F_c (N) and b (N/(mm/s)) come from calibration (control/calibration.h); m (kg) is
+// F_c (N) and b (N/(mm/s)) come from calibration (control/experiments/calibration.h); m (kg) is
 // the slide's moving mass; v_ε smooths the Coulomb sign change through zero speed.
 #pragma once
 

@@ -9,10 +9,12 @@ namespace {
 
 bool Finite(const estimation::FourierMotion& m) {
   auto ok = [](double x) { return std::isfinite(x); };
-  if (!(ok(m.t0_s) && ok(m.phase0_rad) && ok(m.frequency_hz) && ok(m.offset_mm) && ok(m.drift_mm_s)) ||
+  if (!(ok(m.t0_s) && ok(m.phase0_rad) && ok(m.frequency_hz) && ok(m.offset_mm) &&
+        ok(m.drift_mm_s)) ||
       std::isnan(m.valid_until_s))
     return false;
-  return std::all_of(m.cos_mm.begin(), m.cos_mm.end(), ok) && std::all_of(m.sin_mm.begin(), m.sin_mm.end(), ok);
+  return std::all_of(m.cos_mm.begin(), m.cos_mm.end(), ok) &&
+         std::all_of(m.sin_mm.begin(), m.sin_mm.end(), ok);
 }
 
 }  // namespace
@@ -23,10 +25,13 @@ void FollowerConfig::Validate() const {
   };
   if (!(standoff_mm >= 0 && standoff_mm <= 30)) bad("standoff_mm", "must be in [0, 30] mm");
   if (!(stale_after_s > 0 && stale_after_s <= 5)) bad("stale_after_s", "must be in (0, 5] s");
-  if (!(retract_after_s >= 0 && retract_after_s <= 30)) bad("retract_after_s", "must be in [0, 30] s");
+  if (!(retract_after_s >= 0 && retract_after_s <= 30))
+    bad("retract_after_s", "must be in [0, 30] s");
   if (!(retract_mm >= 0 && retract_mm <= 50)) bad("retract_mm", "must be in [0, 50] mm");
-  if (!(retract_speed_mm_s > 0 && retract_speed_mm_s <= 500)) bad("retract_speed_mm_s", "must be in (0, 500] mm/s");
-  if (!(std::isfinite(travel_min_mm) && std::isfinite(travel_max_mm) && travel_min_mm < travel_max_mm))
+  if (!(retract_speed_mm_s > 0 && retract_speed_mm_s <= 500))
+    bad("retract_speed_mm_s", "must be in (0, 500] mm/s");
+  if (!(std::isfinite(travel_min_mm) && std::isfinite(travel_max_mm) &&
+        travel_min_mm < travel_max_mm))
     bad("travel_min_mm/travel_max_mm", "must be finite with min < max");
   if (!(offset_gain > 0 && offset_gain <= 1)) bad("offset_gain", "must be in (0, 1]");
   if (!(min_confidence >= 0 && min_confidence <= 1)) bad("min_confidence", "must be in [0, 1]");
@@ -38,11 +43,16 @@ void FollowerConfig::Validate() const {
 
 std::string ToString(FollowerMode mode) {
   switch (mode) {
-    case FollowerMode::kDisabled: return "disabled";
-    case FollowerMode::kFollowing: return "following";
-    case FollowerMode::kHolding: return "holding";
-    case FollowerMode::kRetracting: return "retracting";
-    case FollowerMode::kStopped: return "stopped";
+    case FollowerMode::kDisabled:
+      return "disabled";
+    case FollowerMode::kFollowing:
+      return "following";
+    case FollowerMode::kHolding:
+      return "holding";
+    case FollowerMode::kRetracting:
+      return "retracting";
+    case FollowerMode::kStopped:
+      return "stopped";
   }
   return "unknown";
 }
@@ -65,7 +75,8 @@ void TargetFollower::Stop(double now_s) {
 
 void TargetFollower::SetStandoff(double standoff_mm) {
   if (!(standoff_mm >= 0 && standoff_mm <= 30))
-    throw std::invalid_argument("TargetFollower: standoff must be in [0, 30] mm, got " + std::to_string(standoff_mm));
+    throw std::invalid_argument("TargetFollower: standoff must be in [0, 30] mm, got " +
+                                std::to_string(standoff_mm));
   config_.standoff_mm = standoff_mm;
 }
 
@@ -73,33 +84,36 @@ double TargetFollower::TipAt(double t_s) const {
   if (tip_history_.empty()) return tip_mm_;
   if (t_s <= tip_history_.front().first) return tip_history_.front().second;
   if (t_s >= tip_history_.back().first) return tip_history_.back().second;
-  const auto hi = std::lower_bound(tip_history_.begin(), tip_history_.end(), t_s,
-                                   [](const std::pair<double, double>& p, double t) { return p.first < t; });
+  const auto hi =
+      std::lower_bound(tip_history_.begin(), tip_history_.end(), t_s,
+                       [](const std::pair<double, double>& p, double t) { return p.first < t; });
   const auto lo = hi - 1;
   const double f = (t_s - lo->first) / std::max(1e-12, hi->first - lo->first);
   return lo->second + f * (hi->second - lo->second);
 }
 
 bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
-  if (!(std::isfinite(e.acquired_s) && std::isfinite(e.published_s) && std::isfinite(e.tip_axis_mm) &&
-        std::isfinite(e.confidence) && Finite(e.target_motion))) {
+  if (!(std::isfinite(e.acquired_s) && std::isfinite(e.published_s) &&
+        std::isfinite(e.tip_axis_mm) && std::isfinite(e.confidence) && Finite(e.target_motion))) {
     ++counters_.rejected_non_finite;
     faults_ |= follower_fault::kRejectedEstimate;
     return false;
   }
   const auto& m = e.target_motion;
-  const bool range_ok = std::abs(e.tip_axis_mm) <= 1000 && std::abs(m.offset_mm) <= 1000 && m.frequency_hz > 0 &&
-                        m.frequency_hz <= 10 && m.cos_mm.size() == m.sin_mm.size() && m.cos_mm.size() <= 32 &&
-                        e.confidence >= 0 && e.confidence <= 1 &&
-                        std::all_of(m.cos_mm.begin(), m.cos_mm.end(), [](double a) { return std::abs(a) <= 100; }) &&
-                        std::all_of(m.sin_mm.begin(), m.sin_mm.end(), [](double a) { return std::abs(a) <= 100; });
+  const bool range_ok =
+      std::abs(e.tip_axis_mm) <= 1000 && std::abs(m.offset_mm) <= 1000 && m.frequency_hz > 0 &&
+      m.frequency_hz <= 10 && m.cos_mm.size() == m.sin_mm.size() && m.cos_mm.size() <= 32 &&
+      e.confidence >= 0 && e.confidence <= 1 &&
+      std::all_of(m.cos_mm.begin(), m.cos_mm.end(), [](double a) { return std::abs(a) <= 100; }) &&
+      std::all_of(m.sin_mm.begin(), m.sin_mm.end(), [](double a) { return std::abs(a) <= 100; });
   if (!range_ok) {
     ++counters_.rejected_range;
     faults_ |= follower_fault::kRejectedEstimate;
     return false;
   }
   if (e.acquired_s > e.published_s || e.published_s > now_s + config_.max_future_s ||
-      now_s - e.acquired_s > config_.stale_after_s + 1.0 || (has_estimate_ && e.acquired_s <= estimate_.acquired_s)) {
+      now_s - e.acquired_s > config_.stale_after_s + 1.0 ||
+      (has_estimate_ && e.acquired_s <= estimate_.acquired_s)) {
     ++counters_.rejected_time;
     faults_ |= follower_fault::kRejectedEstimate;
     return false;
@@ -132,30 +146,35 @@ bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
     scale_ = std::max(scale_, 0.1);
   }
   const double measured_offset = e.tip_axis_mm - scale_ * x;
-  offset_mm_ = offset_known_ ? offset_mm_ + config_.offset_gain * (measured_offset - offset_mm_) : measured_offset;
+  offset_mm_ = offset_known_ ? offset_mm_ + config_.offset_gain * (measured_offset - offset_mm_)
+                             : measured_offset;
   offset_known_ = true;
   estimate_ = e;
   has_estimate_ = true;
   last_estimate_s_ = now_s;
   ++counters_.accepted;
   faults_ &= ~(follower_fault::kStaleEstimate | follower_fault::kRejectedEstimate);
-  if (mode_ == FollowerMode::kHolding && !(faults_ & follower_fault::kStopRequested)) mode_ = FollowerMode::kFollowing;
+  if (mode_ == FollowerMode::kHolding && !(faults_ & follower_fault::kStopRequested))
+    mode_ = FollowerMode::kFollowing;
   return true;
 }
 
 void TargetFollower::Hold(double now_s, std::uint32_t fault) {
-  if (mode_ != FollowerMode::kHolding && mode_ != FollowerMode::kRetracting && mode_ != FollowerMode::kStopped) {
+  if (mode_ != FollowerMode::kHolding && mode_ != FollowerMode::kRetracting &&
+      mode_ != FollowerMode::kStopped) {
     hold_mm_ = tip_mm_;
     hold_since_s_ = now_s;
   }
   faults_ |= fault;
-  if (mode_ != FollowerMode::kStopped && mode_ != FollowerMode::kRetracting) mode_ = FollowerMode::kHolding;
+  if (mode_ != FollowerMode::kStopped && mode_ != FollowerMode::kRetracting)
+    mode_ = FollowerMode::kHolding;
 }
 
 void TargetFollower::Update(double now_s, double tip_mm) {
   tip_mm_ = tip_mm;
   tip_history_.emplace_back(now_s, tip_mm);
-  while (tip_history_.size() > 2 && tip_history_.front().first < now_s - 1.0) tip_history_.pop_front();
+  while (tip_history_.size() > 2 && tip_history_.front().first < now_s - 1.0)
+    tip_history_.pop_front();
   if (mode_ == FollowerMode::kDisabled || mode_ == FollowerMode::kStopped) {
     if (mode_ == FollowerMode::kDisabled) hold_mm_ = tip_mm;
     return;
@@ -194,8 +213,9 @@ MotionSample TargetFollower::Evaluate(double t_s) const {
       break;
     }
     case FollowerMode::kRetracting: {
-      const double travel = std::min(config_.retract_mm,
-                                     config_.retract_speed_mm_s * std::max(0.0, t_s - hold_since_s_ - config_.retract_after_s));
+      const double travel = std::min(
+          config_.retract_mm, config_.retract_speed_mm_s *
+                                  std::max(0.0, t_s - hold_since_s_ - config_.retract_after_s));
       m.position_mm = hold_mm_ - travel;
       m.velocity_mm_s = travel < config_.retract_mm ? -config_.retract_speed_mm_s : 0.0;
       break;

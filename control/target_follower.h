@@ -1,32 +1,14 @@
 // The live servo's reference: keep the catheter tip a chosen standoff short of the moving
 // target, along the catheter axis, from the tracker's predicted motion model.
 //
-// The tracker publishes, per volume, the target's predicted motion along the catheter axis
-// as a Fourier model (estimation/fourier_motion.h; the axis coordinate s in mm of the image
-// frame, on the pipeline clock in s, valid until `valid_until_s`) and the tip's axis
-// coordinate at acquisition. The servo knows its tip in catheter coordinates x (mm,
-// hw::iface::kTipPosition). The two differ by an offset c = s_tip − x_tip, measured at each
-// volume's acquisition time against the servo's own tip history and low-pass filtered
-// (imaging noise ~0.2 mm). The reference is x_ref(t) = s_target(t) − standoff − c, with the
-// model's velocity and acceleration for feed-forward.
-//
-// Scale (`estimate_scale`): image and catheter millimetres need not be equal. A scanner
-// assumes a sound speed (1540 m/s) that the medium does not have (water at 20 °C: 1482 m/s),
-// so it scales every distance by the ratio (+3.9 % in water), and a catheter's drive may have a
-// transmission ratio. With it the model is s_tip = k·x_tip + c: k is the slope of the detected
-// tip's axis coordinate against the servo's tip at acquisition, an exponentially weighted
-// least-squares fit over ~2/scale_gain volumes with a prior k = 1 ± scale_prior_sd (so it stays
-// near 1 until the tip has moved enough to measure it), and the reference becomes
-// x_ref = (s_target − standoff − c)/k. Uncorrected, a 10 mm peak-to-peak target motion leaves
-// (k − 1)·10 mm peak to peak of tip error.
-//
-// Safety supervisor (evaluated every cycle by Update): disabled until Enable; a stop command
-// holds the tip where it is within the cycle it arrives in; when the newest estimate is
-// older than `stale_after_s` or past its validity horizon the tip holds (fault
-// kStaleEstimate), and after `retract_after_s` more it retracts by `retract_mm` at
-// `retract_speed_mm_s`; references are clamped to [travel_min_mm, travel_max_mm]. Rejected
-// estimates (non-finite, out of range, acquired after they were published or in the
-// future) are counted and leave the reference unchanged.
+// In: target estimates (a FourierMotion of the target's axis coordinate s in image mm, on the
+// pipeline clock in s) and the servo's tip x (catheter mm) every cycle. Out: the reference
+// x_ref(t) = (s_target(t) − standoff − c)/k with its velocity and acceleration, c the
+// image↔catheter offset and k their scale (estimate_scale; else k = 1), both fitted online.
+// Supervisor (Update, every cycle): disabled until Enable; Stop holds at once; a stale
+// estimate holds, then retracts; travel clamp; rejected estimates are counted and ignored.
+// Errors: std::invalid_argument for a bad config or a standoff outside [0, 30] mm.
+// Details: docs/control.md#following-the-target-controltarget_followerh
 #pragma once
 
 #include <cstdint>
@@ -41,28 +23,28 @@ namespace echoservo::control {
 
 // One tracker output, as the servo receives it.
 struct TargetEstimateInput {
-  double acquired_s = 0.0;   // the volume's acquisition time (pipeline clock)
-  double published_s = 0.0;  // when the tracker published it
+  double acquired_s = 0.0;                  // the volume's acquisition time (pipeline clock)
+  double published_s = 0.0;                 // when the tracker published it
   estimation::FourierMotion target_motion;  // target's axis coordinate s(t), mm
-  double tip_axis_mm = 0.0;  // the tracked tip's axis coordinate at acquisition
-  double confidence = 0.0;   // detector confidence, [0, 1]
+  double tip_axis_mm = 0.0;                 // the tracked tip's axis coordinate at acquisition
+  double confidence = 0.0;                  // detector confidence, [0, 1]
 };
 
 struct FollowerConfig {
-  double standoff_mm = 3.0;        // tip held this far short of the target, [0, 30]
-  double stale_after_s = 0.25;     // no fresh estimate for this long: hold
-  double retract_after_s = 0.5;    // holding this long: retract
-  double retract_mm = 5.0;         // retraction distance
+  double standoff_mm = 3.0;      // tip held this far short of the target, [0, 30]
+  double stale_after_s = 0.25;   // no fresh estimate for this long: hold
+  double retract_after_s = 0.5;  // holding this long: retract
+  double retract_mm = 5.0;       // retraction distance
   double retract_speed_mm_s = 20.0;
-  double travel_min_mm = -15.0;    // reference clamp (catheter coordinates)
+  double travel_min_mm = -15.0;  // reference clamp (catheter coordinates)
   double travel_max_mm = 15.0;
-  double offset_gain = 0.2;        // low-pass gain of the image↔catheter offset per volume
-  bool estimate_scale = false;     // fit the image/catheter scale k (see above); false: k = 1
-  double scale_gain = 0.01;        // the scale fit's weight of each new volume, (0, 1]
-  double scale_prior_sd = 0.05;    // prior k = 1 ± this, (0, 1]
-  double tip_noise_mm = 0.2;       // the detected tip's noise σ (weighs the prior), (0, 10]
-  double min_confidence = 0.5;     // estimates below are ignored (counted)
-  double max_future_s = 0.05;      // acquisition/publication this far ahead of now: rejected
+  double offset_gain = 0.2;      // low-pass gain of the image↔catheter offset per volume
+  bool estimate_scale = false;   // fit the image/catheter scale k (see above); false: k = 1
+  double scale_gain = 0.01;      // the scale fit's weight of each new volume, (0, 1]
+  double scale_prior_sd = 0.05;  // prior k = 1 ± this, (0, 1]
+  double tip_noise_mm = 0.2;     // the detected tip's noise σ (weighs the prior), (0, 10]
+  double min_confidence = 0.5;   // estimates below are ignored (counted)
+  double max_future_s = 0.05;    // acquisition/publication this far ahead of now: rejected
   // Throws std::invalid_argument naming the field.
   void Validate() const;
 };

@@ -11,9 +11,12 @@
 #pragma once
 
 #include <limits>
+#include <numbers>
 #include <vector>
 
 namespace echoservo::estimation {
+
+inline constexpr double kTwoPi = 2.0 * std::numbers::pi;  // rad per cycle
 
 struct MotionSample {
   double position_mm = 0.0;

@@ -12,8 +12,6 @@
 namespace echoservo::estimation {
 namespace {
 
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
-
 struct Window {
   const double* t;
   const double* x;

@@ -1,17 +1,12 @@
-// Batch fit of a heartbeat (a Fourier series of unknown rate) to a window of samples:
-// the initialisation of the heartbeat EKF (estimation/heartbeat_ekf.h) and the starting
-// point of the motion lab's fits (estimation/motion_model.h).
+// Batch fit of a heartbeat (a Fourier series of unknown rate) to a window of samples: the
+// initialisation of the heartbeat EKF (estimation/heartbeat_ekf.h) and the starting point of
+// the motion lab's fits (lab/motion_model.h).
 //
-// For every candidate rate on a grid over [min_rate_hz, max_rate_hz] (step 1/(30·T) for
-// a window of T seconds), one Householder QR of the design [1, τ/T, …, (τ/T)^order,
-// cos kωτ, sin kωτ] (τ = t − t_ref, harmonic columns ordered by harmonic) gives the residual of
-// every harmonic count N = 1..max at once. (rate, N) minimises the BIC n·ln(RSS/n) + p·ln n, which
-// prefers the true fundamental over its sub-harmonics (they need twice the harmonics for the same
-// fit); only harmonics below 0.45× the sampling rate are tried. The rate is refined by
-// golden-section search. The result is phase-normalised: the fundamental's sine
-// coefficient is 0 and its cosine coefficient ≥ 0, so phase and shape are identifiable.
-// With `shape_window_beats`, the harmonic count and the noise come from the newest beats.
-// Units: s, Hz, mm.
+// In: sample times t_s (s) and positions x_mm (mm), a reference time t_ref_s, rates in Hz.
+// Out: the rate and harmonic count chosen by BIC, and a FourierMotion referred to t_ref,
+// phase-normalised (the fundamental's sine coefficient 0, its cosine coefficient ≥ 0).
+// Errors: FitHarmonics throws std::invalid_argument (cases on its declaration).
+// Details: docs/predictor.md#the-batch-heartbeat-fit-estimationharmonic_fith
 #pragma once
 
 #include <cstddef>

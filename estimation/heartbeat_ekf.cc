@@ -19,12 +19,11 @@ std::size_t MinInitSamples(const HeartbeatEkfOptions& o) {
   return static_cast<std::size_t>(2 * (2 * h + 4));
 }
 
-constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr double kNoiseFloorMm = 0.02;
-constexpr double kNoiseAdaptation = 0.02;  // ~50 measurements (2 s at 25 vol/s)
-constexpr int kInitTrendOrder = 3;         // cubic: slow respiration within the window
-constexpr double kChoiceSplit = 0.6;       // harmonic choice: initialise on 60 %, score 40 %
-constexpr double kMinOffsetRateQ = 0.3;    // mm/s/√s: the offset-rate intensity's floor
+constexpr double kNoiseAdaptation = 0.02;      // ~50 measurements (2 s at 25 vol/s)
+constexpr int kInitTrendOrder = 3;             // cubic: slow respiration within the window
+constexpr double kChoiceSplit = 0.6;           // harmonic choice: initialise on 60 %, score 40 %
+constexpr double kMinOffsetRateQ = 0.3;        // mm/s/√s: the offset-rate intensity's floor
 constexpr double kInitialOffsetRateVar = 1.0;  // (mm/s)²: the offset rate's prior
 
 bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
@@ -38,9 +37,9 @@ HeartbeatEkf::HeartbeatEkf(HeartbeatEkfOptions options) : o_(options) {
       o_.max_rate_hz > o_.min_rate_hz && Positive(o_.init_window_s) && std::isfinite(o_.noise_mm) &&
       o_.noise_mm >= 0.0 && Positive(o_.coefficient_q_mm) && Positive(o_.offset_q_mm) &&
       std::isfinite(o_.offset_rate_q_mm_s) && o_.offset_rate_q_mm_s >= 0.0 &&
-      Positive(o_.rate_q_rad_s) && Positive(o_.phase_q_rad) &&
-      Positive(o_.gate_sigma) && o_.max_rejections >= 1 && Positive(o_.max_phase_sd_rad) &&
-      std::isfinite(o_.horizon_s) && o_.horizon_s >= 0.0;
+      Positive(o_.rate_q_rad_s) && Positive(o_.phase_q_rad) && Positive(o_.gate_sigma) &&
+      o_.max_rejections >= 1 && Positive(o_.max_phase_sd_rad) && std::isfinite(o_.horizon_s) &&
+      o_.horizon_s >= 0.0;
   if (!ok) {
     throw std::invalid_argument(
         "heartbeat EKF: harmonics must be in [0, 12] (0: automatic), rates 0 < min < max, and "
@@ -283,9 +282,11 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
     // Sparse data (many frames lost) may span the window with too few samples to fit (and
     // alias the heartbeat): wait for enough; older samples go once enough newer ones still
     // span the window (a sparse start does not stay in the fit).
-    while (buffer_.size() > MinInitSamples(o_) && buffer_.back().first - buffer_[1].first >= o_.init_window_s)
+    while (buffer_.size() > MinInitSamples(o_) &&
+           buffer_.back().first - buffer_[1].first >= o_.init_window_s)
       buffer_.pop_front();
-    if (buffer_.back().first - buffer_.front().first < o_.init_window_s || buffer_.size() < MinInitSamples(o_))
+    if (buffer_.back().first - buffer_.front().first < o_.init_window_s ||
+        buffer_.size() < MinInitSamples(o_))
       return UpdateResult::kBuffering;
     Initialise();
     return UpdateResult::kInitialised;

@@ -1,39 +1,14 @@
-// The heartbeat EKF (after Yuen et al., MICCAI 2008 / IJRR 2009): an extended Kalman
-// filter on a Fourier model of the cardiac cycle that predicts the target through the
-// imaging delay and exports the predicted motion for the 1 kHz servo.
+// The heartbeat EKF (Yuen et al., MICCAI 2008 / IJRR 2009): an extended Kalman filter on a
+// Fourier model of the cardiac cycle that predicts the target through the imaging delay.
 //
-// State: offset c (mm), [offset rate ċ (mm/s) when the respiration term is carried: the
-// slow low-order respiration term], the fundamental's cosine coefficient a₁ (its sine
-// coefficient is fixed at 0 so that phase and shape are identifiable), aₖ, bₖ for
-// k = 2..N (mm), the cardiac phase θ (rad) and the heart rate ω (rad/s).
-// Process: θ += ω·dt, c += ċ·dt; random walks on the coefficients, offset, ċ and ω
-// (continuous-time intensities in HeartbeatEkfOptions). Measurement: the target
-// position along the catheter axis, z = c + a₁cos θ + Σ(aₖcos kθ + bₖsin kθ) + noise,
-// time-stamped at acquisition (s) and processed in time order; predictions for the
-// current time evaluate the model ahead of the newest acquisition.
-//
-// Life cycle: measurements are buffered until `init_window_s` of data is held, then a
-// batch fit (estimation/harmonic_fit.h, with a cubic trend for slow respiration) gives
-// the rate, the coefficients and the measurement noise, referred to the window's first
-// sample; the filter then runs over the window (warm start), so that prediction starts
-// from the phase and rate at its end although the heart rate changed within it.
-// Automatic harmonic count: filters with 1..max_harmonics harmonics, each initialised
-// (and warm-started) on the first 60 % of the window, predict the remaining 40 % one
-// measurement ahead; the count with the smallest squared prediction error is used (the
-// fewest within (0.01 mm)² a sample of it, for clean data; a count that loses the phase
-// is no candidate). Automatic respiration: the offset-rate state is carried when the
-// window's cubic trend is significant (BIC against a constant offset), with an
-// intensity from the trend's curvature; while it is off, the same test runs on every
-// further window of accepted measurements at the filter's phase track, and two windows
-// in a row switch it on. Missing frames: the next update simply propagates across the
-// gap (coasting). Outliers: a measurement whose innovation exceeds `gate_sigma`
-// innovation standard deviations is rejected. Lost: after `max_rejections` consecutive
-// rejections, or when the phase standard deviation exceeds `max_phase_sd_rad` (a long
-// gap), the filter re-initialises from new data (keeping the measurements since the
-// first rejection), choosing harmonics and respiration anew.
-// Measurement noise: seeded by the fit, then the innovation average
-// R ← 0.98·R + 0.02·max(ν² − HPHᵀ, (0.02 mm)²) over accepted measurements, unless set. While
-// (re)initialising it predicts the newest measurement (zero-order hold).
+// In: the target position along the catheter axis (position_mm, image mm), stamped at
+// acquisition (t_s, s; strictly increasing). Out: Predict(t_s) in mm, and Motion(), a
+// FourierMotion the 1 kHz servo evaluates, valid until the newest acquisition + horizon_s.
+// Buffers until init_window_s of data is held (predicting the newest measurement), then
+// filters; gates outliers (gate_sigma) and re-initialises when lost or after a long gap.
+// Errors: the constructor throws std::invalid_argument for inconsistent options; Process
+// throws it for a NaN or infinite input or a time not after the previous one.
+// Details: docs/predictor.md#the-heartbeat-ekf-estimationheartbeat_ekfh
 #pragma once
 
 #include <Eigen/Core>
@@ -65,7 +40,7 @@ struct HeartbeatEkfOptions {
   // With respiration; 0: from the window's cubic trend, ā·√(T/π) for an RMS trend
   // acceleration ā (mm/s²) over T seconds (floored at 0.3 mm/s/√s).
   double offset_rate_q_mm_s = 0.0;
-  double rate_q_rad_s = 0.6;         // heart-rate variability
+  double rate_q_rad_s = 0.6;  // heart-rate variability
   double phase_q_rad = 0.02;
   double gate_sigma = 4.0;
   int max_rejections = 5;
@@ -141,8 +116,8 @@ class HeartbeatEkf final : public MotionPredictor {
   std::size_t initialisations_ = 0;
   std::deque<std::pair<double, double>> buffer_;  // (t, z) while (re)initialising
   std::deque<std::pair<double, double>> recent_;  // rejected run, for re-initialisation
-  SlowTrendWindow trend_;     // accepted measurements since the last respiration check
-  bool trend_seen_ = false;   // the last check found a slow trend
+  SlowTrendWindow trend_;    // accepted measurements since the last respiration check
+  bool trend_seen_ = false;  // the last check found a slow trend
   Vector x_;
   Matrix p_;
 };

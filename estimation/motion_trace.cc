@@ -4,7 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "hw/csv_table.h"
+#include "hw/io/csv_table.h"
 
 namespace echoservo::estimation {
 

@@ -19,7 +19,8 @@ bool TrendEvidence::Significant() const {
 }
 
 void SlowTrendWindow::Reset(int harmonics, double nominal_s) {
-  if (harmonics < 1 || harmonics > kMaxHarmonics || !(std::isfinite(nominal_s) && nominal_s > 0.0)) {
+  if (harmonics < 1 || harmonics > kMaxHarmonics ||
+      !(std::isfinite(nominal_s) && nominal_s > 0.0)) {
     throw std::invalid_argument(
         "slow trend window: harmonics must be in [1, 12] and the window length positive");
   }

@@ -1,16 +1,12 @@
 // Is there a slow (respiratory) trend under the heartbeat? The test behind the heartbeat
 // EKF's automatic respiration term (estimation/heartbeat_ekf.h).
 //
-// Over a window of measurements z (mm) at times t (s) and cardiac phases θ (rad, a
-// fixed-rate phase at initialisation or the filter's own phase track later), a running
-// least-squares fit of z on [1, u, u², u³, cos kθ, sin kθ (k = 1..N)], u = (t − t_first)/T
-// (T the nominal window length), against the same fit with a constant offset. Each sample
-// updates the normal equations (O(p²), p = 4 + 2N ≤ 28, a fraction of a microsecond); the
-// evidence solves them once per window (two Cholesky factorisations of ≤ 28 × 28), so
-// the test never costs an EKF update more than a few microseconds.
-// The trend is significant when the BIC prefers it: n·ln(RSS_flat/RSS_trend) > 3·ln n
-// (3 parameters more). Its curvature, the RMS over the samples of the cubic's second
-// derivative (mm/s²), sets the respiration state's process noise.
+// In: measurements z (mm) at times t (s) with their cardiac phases θ (rad). Out: the
+// evidence of a cubic trend against a constant offset under the same harmonics (BIC), and
+// the trend's RMS curvature (mm/s²) that sets the respiration state's process noise.
+// Add updates normal equations, O(p²) with p ≤ 28; Evidence solves them (a few µs).
+// Errors: Reset throws std::invalid_argument for harmonics outside 1..12 or nominal_s ≤ 0.
+// Details: docs/predictor.md#the-slow-trend-test-estimationslow_trendh
 #pragma once
 
 #include <Eigen/Core>
@@ -20,13 +16,13 @@ namespace echoservo::estimation {
 
 struct TrendEvidence {
   std::size_t samples = 0;
-  int parameters = 0;              // of the trend fit; 0: too few samples to fit
-  double window_s = 0.0;           // newest − first sample time
-  double rss_flat_mm2 = 0.0;       // harmonics and a constant offset
-  double rss_trend_mm2 = 0.0;      // harmonics and the cubic trend
-  double accel_rms_mm_s2 = 0.0;    // the trend's RMS second derivative over the samples
-  double drift_mm_s = 0.0;         // the trend's slope at the newest sample
-  bool Significant() const;        // BIC; false without enough samples
+  int parameters = 0;            // of the trend fit; 0: too few samples to fit
+  double window_s = 0.0;         // newest − first sample time
+  double rss_flat_mm2 = 0.0;     // harmonics and a constant offset
+  double rss_trend_mm2 = 0.0;    // harmonics and the cubic trend
+  double accel_rms_mm_s2 = 0.0;  // the trend's RMS second derivative over the samples
+  double drift_mm_s = 0.0;       // the trend's slope at the newest sample
+  bool Significant() const;      // BIC; false without enough samples
 };
 
 class SlowTrendWindow {

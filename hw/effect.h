@@ -1,16 +1,14 @@
 // A named physical effect of the guidewire–sheath transmission.
 //
-// The catheter model (hw/transmission_model.h) is a fixed pipeline of stages:
-//   friction force (N, opposing base motion) → drive position (mm, base minus axial
-//   compliance) → deadzone width (mm) → tip dynamics inside the deadzone → tip sensor.
-// An Effect contributes to one or more stages through the hooks below; every hook has
-// a neutral default, so an effect overrides only what it changes. Effects are stateless:
-// their parameters arrive as a block of doubles (`p`, laid out as parameters()) and all
+// The catheter model (hw/transmission_model.h) is a fixed pipeline of stages: friction
+// force (N) → drive position (mm) → deadzone width (mm) → tip dynamics → tip sensor. An
+// Effect contributes through the hooks below, each with a neutral default. Effects are
+// stateless: parameters arrive as a block of doubles (`p`, laid out as parameters()) and all
 // state lives in the model, so the simulator and the model lab share one implementation.
 // Units: mm, s, N, rad. Positive base motion pushes the guidewire towards the tip.
-//
-// Extension: derive from Effect, override the protected Do* hooks, describe the
-// parameters, and register a factory (see docs/adding_an_effect.md).
+// Extension: derive, override the protected Do* hooks, describe the parameters, register a
+// factory.
+// Details: docs/adding_an_effect.md#1-choose-the-physics-and-the-stage-hooks
 #pragma once
 
 #include <span>

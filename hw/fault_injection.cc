@@ -5,13 +5,15 @@
 
 namespace echoservo::hw {
 
-FaultInjectingHardware::FaultInjectingHardware(HardwareInterface& inner, std::vector<InjectedFault> faults)
+FaultInjectingHardware::FaultInjectingHardware(HardwareInterface& inner,
+                                               std::vector<InjectedFault> faults)
     : inner_(inner), faults_(std::move(faults)) {
   for (const InterfaceInfo& i : inner_.state_interfaces()) AddStateInterface(i.name, i.unit);
   for (const InterfaceInfo& i : inner_.command_interfaces()) AddCommandInterface(i.name, i.unit);
   for (const InjectedFault& f : faults_) {
     if (!(f.end_s >= f.start_s))
-      throw std::invalid_argument("FaultInjectingHardware: fault on '" + f.interface + "' ends before it starts");
+      throw std::invalid_argument("FaultInjectingHardware: fault on '" + f.interface +
+                                  "' ends before it starts");
     index_.push_back(f.command ? inner_.CommandIndex(f.interface) : inner_.StateIndex(f.interface));
   }
   last_good_.assign(faults_.size(), 0.0);
@@ -19,7 +21,8 @@ FaultInjectingHardware::FaultInjectingHardware(HardwareInterface& inner, std::ve
     Configure();
     Activate();
   } else if (inner_.lifecycle_state() != LifecycleState::kUnconfigured) {
-    throw std::invalid_argument("FaultInjectingHardware: the inner hardware must be unconfigured or active");
+    throw std::invalid_argument(
+        "FaultInjectingHardware: the inner hardware must be unconfigured or active");
   }
 }
 
@@ -35,11 +38,16 @@ void FaultInjectingHardware::DoCleanup() { inner_.Cleanup(); }
 double FaultInjectingHardware::Apply(const InjectedFault& f, double value, double& last_good) {
   ++injected_;
   switch (f.kind) {
-    case FaultKind::kNaN: return std::numeric_limits<double>::quiet_NaN();
-    case FaultKind::kPosInf: return std::numeric_limits<double>::infinity();
-    case FaultKind::kNegInf: return -std::numeric_limits<double>::infinity();
-    case FaultKind::kDropout: return last_good;
-    case FaultKind::kOffset: return value + f.value;
+    case FaultKind::kNaN:
+      return std::numeric_limits<double>::quiet_NaN();
+    case FaultKind::kPosInf:
+      return std::numeric_limits<double>::infinity();
+    case FaultKind::kNegInf:
+      return -std::numeric_limits<double>::infinity();
+    case FaultKind::kDropout:
+      return last_good;
+    case FaultKind::kOffset:
+      return value + f.value;
   }
   return value;
 }

@@ -1,16 +1,14 @@
 // Fault injection for hardware: a HardwareInterface that wraps another one (the simulated
 // catheter, a rig) and corrupts what passes through it on a schedule — the sensor faults
 // a servo must survive. It mirrors the inner interface's state and command interfaces
-// (same names, units and order) and its lifecycle; read() samples the inner hardware and
-// then applies the state faults active at t; write() applies the command faults and
-// forwards the commands.
+// (same names, units and order) and its lifecycle.
 //
-// Fault kinds, each on one named interface over [start_s, end_s):
-//   kNaN, kPosInf, kNegInf   the value replaced (a broken sensor, a corrupted frame);
-//   kDropout                 the value frozen at its last good reading (a sensor that
-//                            stopped updating);
-//   kOffset                  `value` added (a spike or a calibration jump).
-// Every corrupted sample is counted (injected()). Units: those of the interfaces; t in s.
+// Faults, each on one named interface over [start_s, end_s): NaN, ±inf, drop-out (frozen at
+// the last good reading) or offset; read() applies the state faults, write() the command
+// faults. Every corrupted sample is counted (injected()). Units: those of the interfaces;
+// t in s. Errors: std::invalid_argument for an interface the inner hardware lacks or
+// end_s < start_s.
+// Details: docs/faults.md#the-fault-injecting-hardware-hwfault_injectionh
 #pragma once
 
 #include <cstdint>

@@ -12,11 +12,13 @@ void SimEmTrackerOptions::Validate() const {
   if (!(rate_hz > 0 && rate_hz <= 1000)) bad("rate_hz", "must be in (0, 1000] Hz");
   if (!(noise_rms_mm >= 0 && noise_rms_mm <= 10)) bad("noise_rms_mm", "must be in [0, 10] mm");
   if (!(std::abs(clock_offset_s) <= 10)) bad("clock_offset_s", "must be within ±10 s");
-  if (!(jitter_s >= 0 && jitter_s <= 0.5 / rate_hz)) bad("jitter_s", "must be in [0, 0.5/rate_hz] s");
-  if (!(dropout_probability >= 0 && dropout_probability <= 0.5)) bad("dropout_probability", "must be in [0, 0.5]");
+  if (!(jitter_s >= 0 && jitter_s <= 0.5 / rate_hz))
+    bad("jitter_s", "must be in [0, 0.5/rate_hz] s");
+  if (!(dropout_probability >= 0 && dropout_probability <= 0.5))
+    bad("dropout_probability", "must be in [0, 0.5]");
   const Eigen::Matrix3d r = image_to_em.linear();
-  if (!(image_to_em.matrix().allFinite() && (r * r.transpose() - Eigen::Matrix3d::Identity()).norm() < 1e-6 &&
-        r.determinant() > 0))
+  if (!(image_to_em.matrix().allFinite() &&
+        (r * r.transpose() - Eigen::Matrix3d::Identity()).norm() < 1e-6 && r.determinant() > 0))
     bad("image_to_em", "must be a finite rigid transform");
 }
 
@@ -42,6 +44,5 @@ EmSample SimEmTracker::Sample(const Eigen::Vector3d& tip_image_mm) {
   next_s_ = start_s_ + static_cast<double>(k_) / o_.rate_hz + (o_.jitter_s > 0 ? j(rng_) : 0.0);
   return r;
 }
-
 
 }  // namespace echoservo::hw

@@ -13,16 +13,16 @@
 #include <cstdint>
 #include <random>
 
-#include "hw/em_log.h"
+#include "hw/io/em_log.h"
 
 namespace echoservo::hw {
 
 struct SimEmTrackerOptions {
-  double rate_hz = 40.0;               // (0, 1000]
-  double noise_rms_mm = 0.3;           // per-axis σ = rms / √3, [0, 10]
-  double clock_offset_s = 0.0375;      // EM clock minus pipeline clock, |·| ≤ 10 s
-  double jitter_s = 0.0;               // sampling jitter, [0, 0.5 / rate_hz]
-  double dropout_probability = 0.01;   // [0, 0.5]
+  double rate_hz = 40.0;              // (0, 1000]
+  double noise_rms_mm = 0.3;          // per-axis σ = rms / √3, [0, 10]
+  double clock_offset_s = 0.0375;     // EM clock minus pipeline clock, |·| ≤ 10 s
+  double jitter_s = 0.0;              // sampling jitter, [0, 0.5 / rate_hz]
+  double dropout_probability = 0.01;  // [0, 0.5]
   Eigen::Isometry3d image_to_em = Eigen::Isometry3d::Identity();  // rigid
   std::uint64_t seed = 7;
   // Throws std::invalid_argument naming the field.
@@ -37,7 +37,7 @@ class SimEmTracker {
   double next_sample_s() const { return next_s_; }
   // Takes the sample due at next_sample_s() of the true tip `tip_image_mm` (image frame,
   // at that time) and schedules the next one: t_s on the EM clock, position in the EM
-  // frame (zero for a drop-out). Its log rows: hw/em_log.h SimEmLogRow.
+  // frame (zero for a drop-out). Its log rows: hw/io/em_log.h SimEmLogRow.
   EmSample Sample(const Eigen::Vector3d& tip_image_mm);
   std::uint64_t samples() const { return samples_; }
   std::uint64_t dropouts() const { return dropouts_; }
@@ -51,6 +51,5 @@ class SimEmTracker {
   std::mt19937_64 rng_;
   std::uint64_t samples_ = 0, dropouts_ = 0;
 };
-
 
 }  // namespace echoservo::hw

@@ -11,11 +11,11 @@ namespace echoservo::imaging {
 
 struct FrameGroundTruth {
   bool catheter_visible = false;
-  Eigen::Vector3d axis_point_mm = Eigen::Vector3d::Zero();      // a point on the catheter axis
-  Eigen::Vector3d axis_direction = Eigen::Vector3d::UnitZ();    // unit, pointing to the tip
-  Eigen::Vector3d tip_mm = Eigen::Vector3d::Zero();             // guidewire tip
+  Eigen::Vector3d axis_point_mm = Eigen::Vector3d::Zero();    // a point on the catheter axis
+  Eigen::Vector3d axis_direction = Eigen::Vector3d::UnitZ();  // unit, pointing to the tip
+  Eigen::Vector3d tip_mm = Eigen::Vector3d::Zero();           // guidewire tip
   bool target_visible = false;
-  Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();          // where the axis meets tissue
+  Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();  // where the axis meets tissue
 };
 
 }  // namespace echoservo::imaging

@@ -49,7 +49,8 @@ std::int64_t VolumeGeometry::VoxelCount() const {
 }
 
 bool VolumeGeometry::operator==(const VolumeGeometry& o) const {
-  return dims == o.dims && spacing_mm == o.spacing_mm && origin_mm == o.origin_mm && direction == o.direction;
+  return dims == o.dims && spacing_mm == o.spacing_mm && origin_mm == o.origin_mm &&
+         direction == o.direction;
 }
 
 void VolumeGeometry::Validate(const std::string& where) const {

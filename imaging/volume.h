@@ -1,16 +1,14 @@
 // One 3D ultrasound volume: uint8 voxels on a regular grid, placed in space.
 //
-// Frames. Voxel index space (i, j, k) has x = i fastest, then j, then k, as in MetaImage
-// (ElementDataFile order); integer indices are voxel centres. The image frame is the
-// MetaImage physical space, in mm:
-//     physical_mm = origin_mm + direction · (index ⊙ spacing_mm)
-// where the columns of `direction` are the unit index axes expressed in the image frame
-// (MetaImage TransformMatrix / ITK Direction). `image_to_probe` maps the image frame to the
-// probe (transducer) frame and `probe_to_reference` the probe frame to the tracker's
-// reference frame; both are rigid, in mm. Time in s (the acquisition clock of the stream).
-//
-// Geometry (dims, spacing, origin, direction) is fixed when a volume is created and is
-// validated before any voxel memory is allocated; pose and time stamps can be updated.
+// Frames: voxel index (i, j, k), x fastest, integer indices at voxel centres; the image frame
+// is the MetaImage physical space in mm, physical_mm = origin_mm + direction · (index ⊙
+// spacing_mm), `direction` columns the unit index axes. ImageToProbe (image → probe) and
+// ProbeToReference (probe → tracker reference) are rigid, in mm. Time in s on the stream's
+// acquisition clock. Geometry is fixed at creation and validated before any voxel memory is
+// allocated; pose and time stamps can be updated.
+// Errors: std::invalid_argument naming the field (see Validate and the setters).
+// Notation: docs/architecture.md#units-frames-and-naming
+// Details: docs/imaging.md#volumes-and-frames-imagingvolumeh
 #pragma once
 
 #include <Eigen/Geometry>

@@ -1,12 +1,15 @@
 #include "link/dds_link.h"
 
 #include <arpa/inet.h>
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
+#include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
+#include <fastrtps/attributes/LibrarySettingsAttributes.h>
+#include <fastrtps/utils/IPLocator.h>
+#include <fastrtps/xmlparser/XMLProfileManager.h>
 
 #include <algorithm>
 #include <chrono>
 #include <condition_variable>
-#include <fastrtps/attributes/LibrarySettingsAttributes.h>
-#include <fastrtps/xmlparser/XMLProfileManager.h>
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
@@ -17,9 +20,6 @@
 #include <fastdds/dds/subscriber/Subscriber.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
-#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
-#include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
-#include <fastrtps/utils/IPLocator.h>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -134,8 +134,10 @@ double ToSeconds(const Duration_t& d) {
 
 template <class EntityQos>
 void ApplyQos(const TopicQos& t, int depth, EntityQos& q) {
-  q.reliability().kind = t.reliable ? dds::RELIABLE_RELIABILITY_QOS : dds::BEST_EFFORT_RELIABILITY_QOS;
-  q.durability().kind = t.transient_local ? dds::TRANSIENT_LOCAL_DURABILITY_QOS : dds::VOLATILE_DURABILITY_QOS;
+  q.reliability().kind =
+      t.reliable ? dds::RELIABLE_RELIABILITY_QOS : dds::BEST_EFFORT_RELIABILITY_QOS;
+  q.durability().kind =
+      t.transient_local ? dds::TRANSIENT_LOCAL_DURABILITY_QOS : dds::VOLATILE_DURABILITY_QOS;
   q.history().kind = dds::KEEP_LAST_HISTORY_QOS;
   q.history().depth = depth;
   if (t.liveliness) {
@@ -186,7 +188,8 @@ Locator_t PeerLocator(const std::string& peer) {
   const std::size_t colon = peer.find(':');
   const std::string address = peer.substr(0, colon);
   if (!ValidIpv4(address)) {
-    throw std::invalid_argument("ParticipantOptions.initial_peers: '" + peer + "' is not an IPv4 address");
+    throw std::invalid_argument("ParticipantOptions.initial_peers: '" + peer +
+                                "' is not an IPv4 address");
   }
   Locator_t locator;
   IPLocator::setIPv4(locator, address);
@@ -211,15 +214,18 @@ Locator_t PeerLocator(const std::string& peer) {
 
 void ParticipantOptions::Validate() const {
   if (domain_id < 0 || domain_id > kMaxDomainId) {
-    throw std::invalid_argument("ParticipantOptions.domain_id must be 0.." + std::to_string(kMaxDomainId));
+    throw std::invalid_argument("ParticipantOptions.domain_id must be 0.." +
+                                std::to_string(kMaxDomainId));
   }
   if (loopback_only && (!interfaces.empty() || !initial_peers.empty() || !shared_memory)) {
     throw std::invalid_argument(
-        "ParticipantOptions.loopback_only excludes interfaces, initial_peers and shared_memory = false");
+        "ParticipantOptions.loopback_only excludes interfaces, initial_peers and shared_memory = "
+        "false");
   }
   for (const std::string& address : interfaces) {
     if (!ValidIpv4(address)) {
-      throw std::invalid_argument("ParticipantOptions.interfaces: '" + address + "' is not an IPv4 address");
+      throw std::invalid_argument("ParticipantOptions.interfaces: '" + address +
+                                  "' is not an IPv4 address");
     }
   }
   for (const std::string& peer : initial_peers) PeerLocator(peer);
@@ -227,7 +233,8 @@ void ParticipantOptions::Validate() const {
     throw std::invalid_argument("ParticipantOptions.profile needs profiles_file");
   }
   for (const auto& [property, value] : properties) {
-    if (property.empty()) throw std::invalid_argument("ParticipantOptions.properties: empty property name");
+    if (property.empty())
+      throw std::invalid_argument("ParticipantOptions.properties: empty property name");
   }
 }
 
@@ -259,11 +266,13 @@ struct Participant::Impl {
     dds::DomainParticipantQos qos = factory->get_default_participant_qos();
     if (!o.profiles_file.empty()) {
       if (factory->load_XML_profiles_file(o.profiles_file) != ReturnCode_t::RETCODE_OK) {
-        throw std::invalid_argument("ParticipantOptions.profiles_file: cannot load '" + o.profiles_file + "'");
+        throw std::invalid_argument("ParticipantOptions.profiles_file: cannot load '" +
+                                    o.profiles_file + "'");
       }
       if (!o.profile.empty() &&
           factory->get_participant_qos_from_profile(o.profile, qos) != ReturnCode_t::RETCODE_OK) {
-        throw std::invalid_argument("ParticipantOptions.profile: no participant profile '" + o.profile + "'");
+        throw std::invalid_argument("ParticipantOptions.profile: no participant profile '" +
+                                    o.profile + "'");
       }
     }
     qos.name(o.name);
@@ -278,11 +287,14 @@ struct Participant::Impl {
       qos.transport().use_builtin_transports = false;
       qos.transport().user_transports = {Udp(o.interfaces)};
       if (o.shared_memory) {
-        qos.transport().user_transports.push_back(std::make_shared<rtps::SharedMemTransportDescriptor>());
+        qos.transport().user_transports.push_back(
+            std::make_shared<rtps::SharedMemTransportDescriptor>());
       }
     }
-    for (const std::string& p : o.initial_peers) qos.wire_protocol().builtin.initialPeersList.push_back(PeerLocator(p));
-    for (const auto& [property, value] : o.properties) qos.properties().properties().emplace_back(property, value);
+    for (const std::string& p : o.initial_peers)
+      qos.wire_protocol().builtin.initialPeersList.push_back(PeerLocator(p));
+    for (const auto& [property, value] : o.properties)
+      qos.properties().properties().emplace_back(property, value);
 
     if (qos.wire_protocol().participant_id < 0) {
       participant_id = ParticipantIds::Acquire();
@@ -323,8 +335,10 @@ struct Participant::Impl {
     if (type.register_type(participant) != ReturnCode_t::RETCODE_OK) {
       throw std::runtime_error("DDS: cannot register type " + type.get_type_name());
     }
-    dds::Topic* topic = participant->create_topic(std::string(Traits::kName), type.get_type_name(), dds::TOPIC_QOS_DEFAULT);
-    if (topic == nullptr) throw std::runtime_error("DDS: cannot create topic " + std::string(Traits::kName));
+    dds::Topic* topic = participant->create_topic(std::string(Traits::kName), type.get_type_name(),
+                                                  dds::TOPIC_QOS_DEFAULT);
+    if (topic == nullptr)
+      throw std::runtime_error("DDS: cannot create topic " + std::string(Traits::kName));
     topics.emplace(std::string(Traits::kName), topic);
     return topic;
   }
@@ -346,14 +360,16 @@ struct Publisher<Sample>::Impl {
   std::shared_ptr<Participant::Impl> participant;
   dds::Topic* topic = nullptr;
   dds::DataWriter* writer = nullptr;
-  std::mutex mu;                    // Publish from any thread
+  std::mutex mu;                     // Publish from any thread
   typename Traits::Message message;  // reused: no allocation once warm
 
-  explicit Impl(const Participant& p) : participant(p.impl()), topic(participant->template TopicFor<Sample>()) {
+  explicit Impl(const Participant& p)
+      : participant(p.impl()), topic(participant->template TopicFor<Sample>()) {
     dds::DataWriterQos qos = participant->publisher->get_default_datawriter_qos();
     ApplyQos(Traits::kQos, Traits::kQos.writer_depth, qos);
     writer = participant->publisher->create_datawriter(topic, qos);
-    if (writer == nullptr) throw std::runtime_error("DDS: cannot create a writer on " + topic->get_name());
+    if (writer == nullptr)
+      throw std::runtime_error("DDS: cannot create a writer on " + topic->get_name());
   }
   ~Impl() { participant->publisher->delete_datawriter(writer); }
   Impl(const Impl&) = delete;
@@ -367,7 +383,8 @@ struct Publisher<Sample>::Impl {
 };
 
 template <class Sample>
-Publisher<Sample>::Publisher(Participant& participant) : impl_(std::make_unique<Impl>(participant)) {}
+Publisher<Sample>::Publisher(Participant& participant)
+    : impl_(std::make_unique<Impl>(participant)) {}
 
 template <class Sample>
 Publisher<Sample>::~Publisher() = default;
@@ -434,7 +451,8 @@ struct Subscriber<Sample>::Impl final : public dds::DataReaderListener {
     dds::DataReaderQos qos = participant->subscriber->get_default_datareader_qos();
     ApplyQos(Traits::kQos, Traits::kQos.reader_depth, qos);
     reader = participant->subscriber->create_datareader(topic, qos, this);
-    if (reader == nullptr) throw std::runtime_error("DDS: cannot create a reader on " + topic->get_name());
+    if (reader == nullptr)
+      throw std::runtime_error("DDS: cannot create a reader on " + topic->get_name());
   }
   ~Impl() override {
     reader->set_listener(nullptr);
@@ -486,7 +504,8 @@ struct Subscriber<Sample>::Impl final : public dds::DataReaderListener {
     std::lock_guard lock(mu);
     alive_count = static_cast<std::uint32_t>(std::max(0, s.alive_count));
     if (s.alive_count > 0) stats.ever_alive = true;
-    if (s.not_alive_count_change > 0) stats.liveliness_lost += static_cast<std::uint64_t>(s.not_alive_count_change);
+    if (s.not_alive_count_change > 0)
+      stats.liveliness_lost += static_cast<std::uint64_t>(s.not_alive_count_change);
   }
 
   bool TakeLocked(Sample& out, double* received_s) {
@@ -499,7 +518,8 @@ struct Subscriber<Sample>::Impl final : public dds::DataReaderListener {
 };
 
 template <class Sample>
-Subscriber<Sample>::Subscriber(Participant& participant, ValidationLimits limits, Callback on_sample)
+Subscriber<Sample>::Subscriber(Participant& participant, ValidationLimits limits,
+                               Callback on_sample)
     : impl_(std::make_unique<Impl>(participant, limits, std::move(on_sample))) {}
 
 template <class Sample>
@@ -514,7 +534,8 @@ bool Subscriber<Sample>::TryTakeLatest(Sample& out, double* received_s) {
 template <class Sample>
 bool Subscriber<Sample>::WaitTakeLatest(Sample& out, double timeout_s, double* received_s) {
   std::unique_lock lock(impl_->mu);
-  impl_->fresh_cv.wait_for(lock, std::chrono::duration<double>(timeout_s), [&] { return impl_->fresh; });
+  impl_->fresh_cv.wait_for(lock, std::chrono::duration<double>(timeout_s),
+                           [&] { return impl_->fresh; });
   return impl_->TakeLocked(out, received_s);
 }
 
@@ -528,8 +549,9 @@ SubscriberStats Subscriber<Sample>::stats() const {
   std::lock_guard lock(impl_->mu);
   SubscriberStats s = impl_->stats;
   s.validation = impl_->validator.counters();
-  s.alive_publishers = Impl::Traits::kQos.liveliness ? std::min(impl_->alive_count, s.matched_publishers)
-                                                     : s.matched_publishers;
+  s.alive_publishers = Impl::Traits::kQos.liveliness
+                           ? std::min(impl_->alive_count, s.matched_publishers)
+                           : s.matched_publishers;
   return s;
 }
 

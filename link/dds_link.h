@@ -1,20 +1,14 @@
-// The DDS link between the tracker, the servo and operator tools (Fast DDS underneath,
-// none of its headers here): a Participant per process, typed publishers and
-// subscribers of the three topics, and the QoS each topic uses (docs/dds.md).
+// The DDS link between the tracker, the servo and operator tools (Fast DDS underneath, none
+// of its headers here): a Participant per process, typed publishers and subscribers of the
+// three topics, and the QoS each topic uses.
 //
-//   Participant p({.domain_id = 0});
-//   TargetPublisher pub(p);            pub.Publish(sample);
-//   TargetSubscriber sub(p);           if (sub.TryTakeLatest(latest)) ...   // 1 kHz loop
-//
-// Subscribers validate every sample on reception (link/sample_validation.h) on the DDS
-// receive thread, count rejections by reason, keep the newest accepted sample in a slot
-// and optionally call a callback. TryTakeLatest never blocks: it copies the slot if a
-// new sample is there (reusing the caller's storage, no allocation once warm) and
-// returns false otherwise. A publisher that disappears is seen through liveliness on the
-// target and state topics (lease kLivelinessLeaseS): stats().publisher_gone().
-// Times in s on the shared clock (link/clock.h); units and frames as in link/samples.h.
-// Options a user can get wrong throw std::invalid_argument; a DDS entity that cannot be
-// created throws std::runtime_error.
+// Subscribers validate every sample on the DDS receive thread (link/sample_validation.h),
+// count rejections by reason and keep the newest accepted sample; TryTakeLatest never blocks
+// and does not allocate once warm (the 1 kHz loop). A publisher that disappears shows as
+// stats().publisher_gone() (liveliness). Times in s on the shared clock (link/clock.h);
+// units and frames as in link/samples.h. Errors: options a user can get wrong throw
+// std::invalid_argument; a DDS entity that cannot be created throws std::runtime_error.
+// Details: docs/dds.md#using-it
 #pragma once
 
 #include <cstddef>
@@ -135,7 +129,8 @@ class Subscriber {
   // are caught and counted).
   using Callback = std::function<void(const Sample& s, double received_s)>;
 
-  explicit Subscriber(Participant& participant, ValidationLimits limits = {}, Callback on_sample = {});
+  explicit Subscriber(Participant& participant, ValidationLimits limits = {},
+                      Callback on_sample = {});
   ~Subscriber();
   Subscriber(const Subscriber&) = delete;
   Subscriber& operator=(const Subscriber&) = delete;

@@ -20,7 +20,8 @@ static_assert(echoservo_msgs::msg::TargetEstimate_Constants::MAX_HARMONICS == kM
 static_assert(state_constants::MODE_IDLE == static_cast<std::uint8_t>(ServoMode::kIdle));
 static_assert(state_constants::MODE_TRACKING == static_cast<std::uint8_t>(ServoMode::kTracking));
 static_assert(state_constants::MODE_HOLDING == static_cast<std::uint8_t>(ServoMode::kHolding));
-static_assert(state_constants::MODE_RETRACTING == static_cast<std::uint8_t>(ServoMode::kRetracting));
+static_assert(state_constants::MODE_RETRACTING ==
+              static_cast<std::uint8_t>(ServoMode::kRetracting));
 static_assert(state_constants::MODE_STOPPED == static_cast<std::uint8_t>(ServoMode::kStopped));
 static_assert(state_constants::MODE_FAULT == static_cast<std::uint8_t>(ServoMode::kFault));
 static_assert(state_constants::MODE_FAULT == kMaxServoMode);
@@ -33,9 +34,11 @@ static_assert(state_constants::FAULT_NON_FINITE == fault::kNonFinite);
 static_assert(state_constants::FAULT_HARDWARE == fault::kHardware);
 static_assert(state_constants::FAULT_TRACKER_LOST == fault::kTrackerLost);
 static_assert(command_constants::ACTION_ENABLE == static_cast<std::uint8_t>(ServoAction::kEnable));
-static_assert(command_constants::ACTION_DISABLE == static_cast<std::uint8_t>(ServoAction::kDisable));
+static_assert(command_constants::ACTION_DISABLE ==
+              static_cast<std::uint8_t>(ServoAction::kDisable));
 static_assert(command_constants::ACTION_STOP == static_cast<std::uint8_t>(ServoAction::kStop));
-static_assert(command_constants::ACTION_SET_STANDOFF == static_cast<std::uint8_t>(ServoAction::kSetStandoff));
+static_assert(command_constants::ACTION_SET_STANDOFF ==
+              static_cast<std::uint8_t>(ServoAction::kSetStandoff));
 static_assert(command_constants::ACTION_ENABLE == kMinServoAction);
 static_assert(command_constants::ACTION_SET_STANDOFF == kMaxServoAction);
 
@@ -120,7 +123,8 @@ void ToMessage(const TargetEstimateSample& s, echoservo_msgs::msg::TargetEstimat
   const std::size_t harmonics = std::max(s.motion.cos_mm.size(), s.motion.sin_mm.size());
   if (harmonics > kMaxHarmonics) {
     throw std::invalid_argument("TargetEstimateSample.motion: " + std::to_string(harmonics) +
-                                " harmonics, the link carries at most " + std::to_string(kMaxHarmonics));
+                                " harmonics, the link carries at most " +
+                                std::to_string(kMaxHarmonics));
   }
   TargetFields(m, s, ToWire{});
 }
@@ -129,13 +133,17 @@ void FromMessage(const echoservo_msgs::msg::TargetEstimate& m, TargetEstimateSam
   TargetFields(m, s, FromWire{});
 }
 
-void ToMessage(const CatheterStateSample& s, echoservo_msgs::msg::CatheterState& m) { StateFields(m, s, ToWire{}); }
+void ToMessage(const CatheterStateSample& s, echoservo_msgs::msg::CatheterState& m) {
+  StateFields(m, s, ToWire{});
+}
 
 void FromMessage(const echoservo_msgs::msg::CatheterState& m, CatheterStateSample& s) {
   StateFields(m, s, FromWire{});
 }
 
-void ToMessage(const ServoCommandSample& s, echoservo_msgs::msg::ServoCommand& m) { CommandFields(m, s, ToWire{}); }
+void ToMessage(const ServoCommandSample& s, echoservo_msgs::msg::ServoCommand& m) {
+  CommandFields(m, s, ToWire{});
+}
 
 void FromMessage(const echoservo_msgs::msg::ServoCommand& m, ServoCommandSample& s) {
   CommandFields(m, s, FromWire{});

@@ -39,7 +39,8 @@ bool Within(const Eigen::Vector3d& v, double bound) { return v.cwiseAbs().maxCoe
 
 // The time checks shared by all samples: `t_s` neither in the future beyond the
 // tolerance nor older than `max_age_s`.
-std::optional<Rejection> CheckTime(double t_s, double now_s, double max_age_s, const ValidationLimits& l) {
+std::optional<Rejection> CheckTime(double t_s, double now_s, double max_age_s,
+                                   const ValidationLimits& l) {
   if (t_s > now_s + l.max_future_s) return Rejection::kFutureTimestamp;
   if (now_s - t_s > max_age_s) return Rejection::kStaleTimestamp;
   return std::nullopt;
@@ -77,7 +78,8 @@ void ValidationLimits::Validate() const {
   RequireLimit(positive(max_abs_position_mm), "max_abs_position_mm");
   RequireLimit(positive(max_abs_velocity_mm_s), "max_abs_velocity_mm_s");
   RequireLimit(positive(min_frequency_hz), "min_frequency_hz");
-  RequireLimit(positive(max_frequency_hz) && max_frequency_hz >= min_frequency_hz, "max_frequency_hz");
+  RequireLimit(positive(max_frequency_hz) && max_frequency_hz >= min_frequency_hz,
+               "max_frequency_hz");
   RequireLimit(max_harmonics <= kMaxHarmonics, "max_harmonics");
   RequireLimit(positive(axis_norm_tolerance), "axis_norm_tolerance");
   RequireLimit(positive(max_horizon_s), "max_horizon_s");
@@ -91,12 +93,13 @@ void ValidationLimits::Validate() const {
   RequireLimit(positive(max_command_age_s), "max_command_age_s");
 }
 
-std::optional<Rejection> Check(const TargetEstimateSample& s, double now_s, const ValidationLimits& l) {
+std::optional<Rejection> Check(const TargetEstimateSample& s, double now_s,
+                               const ValidationLimits& l) {
   const estimation::FourierMotion& m = s.motion;
   if (!AllFinite({s.acquisition_time_s, s.publication_time_s, s.confidence, m.t0_s, m.phase0_rad,
                   m.frequency_hz, m.offset_mm, m.drift_mm_s, m.valid_until_s}) ||
-      !AllFinite(s.target_mm) || !AllFinite(s.axis) || !AllFinite(s.tip_mm) || !AllFinite(m.cos_mm) ||
-      !AllFinite(m.sin_mm)) {
+      !AllFinite(s.target_mm) || !AllFinite(s.axis) || !AllFinite(s.tip_mm) ||
+      !AllFinite(m.cos_mm) || !AllFinite(m.sin_mm)) {
     return Rejection::kNonFinite;
   }
   if (m.cos_mm.size() != m.sin_mm.size() || m.cos_mm.size() > l.max_harmonics) {
@@ -104,11 +107,12 @@ std::optional<Rejection> Check(const TargetEstimateSample& s, double now_s, cons
   }
   const bool in_range =
       Within(s.target_mm, l.max_abs_position_mm) && Within(s.tip_mm, l.max_abs_position_mm) &&
-      std::abs(s.axis.norm() - 1.0) <= l.axis_norm_tolerance && s.confidence >= 0.0 && s.confidence <= 1.0 &&
-      m.frequency_hz >= l.min_frequency_hz && m.frequency_hz <= l.max_frequency_hz &&
-      Within(m.offset_mm, l.max_abs_position_mm) && Within(m.drift_mm_s, l.max_abs_velocity_mm_s) &&
-      Within(m.cos_mm, l.max_abs_position_mm) && Within(m.sin_mm, l.max_abs_position_mm) &&
-      m.valid_until_s >= s.acquisition_time_s && m.valid_until_s - s.acquisition_time_s <= l.max_horizon_s &&
+      std::abs(s.axis.norm() - 1.0) <= l.axis_norm_tolerance && s.confidence >= 0.0 &&
+      s.confidence <= 1.0 && m.frequency_hz >= l.min_frequency_hz &&
+      m.frequency_hz <= l.max_frequency_hz && Within(m.offset_mm, l.max_abs_position_mm) &&
+      Within(m.drift_mm_s, l.max_abs_velocity_mm_s) && Within(m.cos_mm, l.max_abs_position_mm) &&
+      Within(m.sin_mm, l.max_abs_position_mm) && m.valid_until_s >= s.acquisition_time_s &&
+      m.valid_until_s - s.acquisition_time_s <= l.max_horizon_s &&
       std::abs(m.t0_s - s.acquisition_time_s) <= l.max_horizon_s;
   if (!in_range) return Rejection::kOutOfRange;
   if (s.publication_time_s < s.acquisition_time_s) return Rejection::kPublishedBeforeAcquired;
@@ -116,28 +120,33 @@ std::optional<Rejection> Check(const TargetEstimateSample& s, double now_s, cons
   return CheckTime(s.acquisition_time_s, now_s, l.max_target_age_s, l);
 }
 
-std::optional<Rejection> Check(const CatheterStateSample& s, double now_s, const ValidationLimits& l) {
-  if (!AllFinite({s.stamp_s, s.base_mm, s.base_velocity_mm_s, s.tip_estimate_mm, s.setpoint_mm, s.force_n,
-                  s.standoff_mm, s.estimate_age_s})) {
+std::optional<Rejection> Check(const CatheterStateSample& s, double now_s,
+                               const ValidationLimits& l) {
+  if (!AllFinite({s.stamp_s, s.base_mm, s.base_velocity_mm_s, s.tip_estimate_mm, s.setpoint_mm,
+                  s.force_n, s.standoff_mm, s.estimate_age_s})) {
     return Rejection::kNonFinite;
   }
-  const bool in_range = static_cast<std::uint8_t>(s.mode) <= kMaxServoMode && (s.faults & ~fault::kAll) == 0 &&
-                        Within(s.base_mm, l.max_abs_position_mm) &&
-                        Within(s.base_velocity_mm_s, l.max_abs_velocity_mm_s) &&
-                        Within(s.tip_estimate_mm, l.max_abs_position_mm) &&
-                        Within(s.setpoint_mm, l.max_abs_position_mm) && Within(s.force_n, l.max_abs_force_n) &&
-                        s.standoff_mm >= l.min_standoff_mm && s.standoff_mm <= l.max_standoff_mm &&
-                        s.estimate_age_s >= 0.0 && s.estimate_age_s <= l.max_estimate_age_s;
+  const bool in_range =
+      static_cast<std::uint8_t>(s.mode) <= kMaxServoMode && (s.faults & ~fault::kAll) == 0 &&
+      Within(s.base_mm, l.max_abs_position_mm) &&
+      Within(s.base_velocity_mm_s, l.max_abs_velocity_mm_s) &&
+      Within(s.tip_estimate_mm, l.max_abs_position_mm) &&
+      Within(s.setpoint_mm, l.max_abs_position_mm) && Within(s.force_n, l.max_abs_force_n) &&
+      s.standoff_mm >= l.min_standoff_mm && s.standoff_mm <= l.max_standoff_mm &&
+      s.estimate_age_s >= 0.0 && s.estimate_age_s <= l.max_estimate_age_s;
   if (!in_range) return Rejection::kOutOfRange;
   return CheckTime(s.stamp_s, now_s, l.max_state_age_s, l);
 }
 
-std::optional<Rejection> Check(const ServoCommandSample& s, double now_s, const ValidationLimits& l) {
+std::optional<Rejection> Check(const ServoCommandSample& s, double now_s,
+                               const ValidationLimits& l) {
   if (!AllFinite({s.stamp_s, s.standoff_mm})) return Rejection::kNonFinite;
   const auto action = static_cast<std::uint8_t>(s.action);
-  const bool uses_standoff = s.action == ServoAction::kEnable || s.action == ServoAction::kSetStandoff;
+  const bool uses_standoff =
+      s.action == ServoAction::kEnable || s.action == ServoAction::kSetStandoff;
   const bool in_range = action >= kMinServoAction && action <= kMaxServoAction &&
-                        (!uses_standoff || (s.standoff_mm >= l.min_standoff_mm && s.standoff_mm <= l.max_standoff_mm));
+                        (!uses_standoff || (s.standoff_mm >= l.min_standoff_mm &&
+                                            s.standoff_mm <= l.max_standoff_mm));
   if (!in_range) return Rejection::kOutOfRange;
   return CheckTime(s.stamp_s, now_s, l.max_command_age_s, l);
 }

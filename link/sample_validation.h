@@ -19,11 +19,11 @@
 namespace echoservo::link {
 
 enum class Rejection : int {
-  kNonFinite = 0,         // NaN or ±inf in any field
-  kOutOfRange,            // a value outside its sane range (positions, frequency, ...)
-  kBadMotionModel,        // harmonic count over the bound or cos/sin sizes that differ
-  kFutureTimestamp,       // a timestamp later than now + max_future_s
-  kStaleTimestamp,        // acquisition (or stamp) older than the max age
+  kNonFinite = 0,    // NaN or ±inf in any field
+  kOutOfRange,       // a value outside its sane range (positions, frequency, ...)
+  kBadMotionModel,   // harmonic count over the bound or cos/sin sizes that differ
+  kFutureTimestamp,  // a timestamp later than now + max_future_s
+  kStaleTimestamp,   // acquisition (or stamp) older than the max age
   kPublishedBeforeAcquired,
   kCount
 };
@@ -51,9 +51,12 @@ struct ValidationLimits {
 };
 
 // The first reason `s` is rejected for, or nothing when it is acceptable at `now_s`.
-std::optional<Rejection> Check(const TargetEstimateSample& s, double now_s, const ValidationLimits& l);
-std::optional<Rejection> Check(const CatheterStateSample& s, double now_s, const ValidationLimits& l);
-std::optional<Rejection> Check(const ServoCommandSample& s, double now_s, const ValidationLimits& l);
+std::optional<Rejection> Check(const TargetEstimateSample& s, double now_s,
+                               const ValidationLimits& l);
+std::optional<Rejection> Check(const CatheterStateSample& s, double now_s,
+                               const ValidationLimits& l);
+std::optional<Rejection> Check(const ServoCommandSample& s, double now_s,
+                               const ValidationLimits& l);
 
 struct RejectionCounters {
   std::uint64_t accepted = 0;

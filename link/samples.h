@@ -89,10 +89,10 @@ struct CatheterStateSample {
 
 // Values of ServoCommand_Constants::ACTION_*.
 enum class ServoAction : std::uint8_t {
-  kEnable = 1,        // track at standoff_mm
-  kDisable = 2,       // hold, then idle
-  kStop = 3,          // stop now (within one servo cycle)
-  kSetStandoff = 4,   // change the standoff while tracking
+  kEnable = 1,       // track at standoff_mm
+  kDisable = 2,      // hold, then idle
+  kStop = 3,         // stop now (within one servo cycle)
+  kSetStandoff = 4,  // change the standoff while tracking
 };
 inline constexpr std::uint8_t kMinServoAction = 1;
 inline constexpr std::uint8_t kMaxServoAction = 4;

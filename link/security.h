@@ -1,18 +1,14 @@
-// DDS-Security credentials for the link (docs/dds.md "Security"): a test certificate
-// authority, one identity per participant role with its certificate and private key, a
-// governance document and per-role permissions, both S/MIME-signed by the CA, and the
-// Fast DDS participant properties (dds.sec.*) that load them into a Participant
-// (ParticipantOptions::properties). Builtin plugins: PKI-DH authentication,
-// Access-Permissions, AES-GCM-GMAC. OpenSSL appears only in security.cc; no crypto of
-// our own. Keys are ECDSA P-256; certificates and permissions are valid from one day
-// before creation (UTC) for `validity_days`; paths are file names, URIs are file://.
+// DDS-Security credentials for the link: a test certificate authority, one identity per
+// participant role (certificate and private key), a governance document and per-role
+// permissions signed by the CA, and the Fast DDS participant properties (dds.sec.*) that
+// load them (ParticipantOptions::properties). Builtin plugins: PKI-DH, Access-Permissions,
+// AES-GCM-GMAC; OpenSSL only in security.cc, no crypto of our own.
 //
-//   InitSecurityDir("sec", {});                          // CA, identities, documents
-//   ParticipantOptions o;
-//   o.properties = SecurityProperties(CheckSecurityDir("sec", "servo"));
-//
-// Bad options and bad credential directories throw std::invalid_argument naming the file
-// and why; a file that cannot be written or an OpenSSL failure throws std::runtime_error.
+// Keys ECDSA P-256; validity from one day before creation (UTC) for validity_days; paths are
+// file names, URIs file://. Errors: bad options and bad credential directories throw
+// std::invalid_argument naming the file and why; a file that cannot be written or an
+// OpenSSL failure throws std::runtime_error.
+// Details: docs/dds.md#security
 #pragma once
 
 #include <string>

@@ -2,6 +2,8 @@
 # Builds the libFuzzer targets with clang (-DECHOSERVO_FUZZ=ON, ASan + UBSan) into
 # build-fuzz/ and runs each from its seed corpus (tests/fuzz/corpus/<name>) for a bounded
 # time. Usage: scripts/fuzz.sh [SECONDS_PER_TARGET (default 25)] [TARGET...]
+# libFuzzer runs one process per target on one core: the targets run side by side,
+# ECHOSERVO_FUZZ_JOBS at a time (default: the number of cores), each for its full time.
 # New inputs go to build-fuzz/corpus/<name> (the committed seeds are only read); a crash
 # leaves build-fuzz/artifacts/<name>/crash-* and fails the script. Longer runs and the
 # documented 10^6-execution run: docs/reliability.md "Sanitizers and fuzzing".
@@ -23,18 +25,36 @@ CC="${CC:-clang-14}" CXX="${CXX:-clang++-14}" cmake -S . -B build-fuzz -G Ninja 
   -DECHOSERVO_BUILD_BENCH=OFF
 cmake --build build-fuzz -j2 --target fuzz_all
 
-status=0
-for t in "${targets[@]}"; do
+jobs="${ECHOSERVO_FUZZ_JOBS:-$(nproc)}"
+
+# Runs one target; its log is build-fuzz/fuzz_<name>.log. Exit status: the fuzzer's.
+run_target() {
+  local t="$1"
   mkdir -p "build-fuzz/corpus/$t" "build-fuzz/artifacts/$t"
+  build-fuzz/bin/fuzz_"$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+    -max_len=65536 -print_final_stats=1 -artifact_prefix="build-fuzz/artifacts/$t/" \
+    "build-fuzz/corpus/$t" "tests/fuzz/corpus/$t" 2> "build-fuzz/fuzz_$t.log"
+}
+
+declare -A pids
+failed=()
+for t in "${targets[@]}"; do
+  while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n || true; done
   echo "fuzz: fuzz_$t for ${seconds} s"
-  if ! build-fuzz/bin/fuzz_"$t" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
-      -max_len=65536 -print_final_stats=1 -artifact_prefix="build-fuzz/artifacts/$t/" \
-      "build-fuzz/corpus/$t" "tests/fuzz/corpus/$t" 2> "build-fuzz/fuzz_$t.log"; then
-    echo "fuzz: fuzz_$t FAILED (build-fuzz/fuzz_$t.log, build-fuzz/artifacts/$t/)" >&2
-    tail -n 60 "build-fuzz/fuzz_$t.log" >&2
-    status=1
-  else
-    grep -E '^stat::number_of_executed_units|^Done' "build-fuzz/fuzz_$t.log" || true
-  fi
+  run_target "$t" &
+  pids[$t]=$!
+done
+for t in "${targets[@]}"; do
+  if ! wait "${pids[$t]}"; then failed+=("$t"); fi
+done
+
+for t in "${targets[@]}"; do
+  echo "fuzz: fuzz_$t: $(grep -E '^stat::number_of_executed_units' "build-fuzz/fuzz_$t.log" || echo 'no stats')"
+done
+status=0
+for t in "${failed[@]}"; do
+  echo "fuzz: fuzz_$t FAILED (build-fuzz/fuzz_$t.log, build-fuzz/artifacts/$t/)" >&2
+  tail -n 60 "build-fuzz/fuzz_$t.log" >&2
+  status=1
 done
 exit "$status"

@@ -46,7 +46,8 @@ Pose WidePose(std::mt19937_64& rng, int index) {
 }
 
 void SetPose(const Pose& p, SimulatedScannerOptions& o) {
-  imaging::sim::PlaceCatheterScene({p.yaw_deg, p.tilt_deg, p.depth_mm, p.lateral_mm, p.advance_mm}, o);
+  imaging::sim::PlaceCatheterScene({p.yaw_deg, p.tilt_deg, p.depth_mm, p.lateral_mm, p.advance_mm},
+                                   o);
 }
 
 Eigen::Isometry3d BaseToWorld(const Pose& p) {
@@ -80,7 +81,8 @@ void AddClutter(const Pose& p, std::mt19937_64& rng, SimulatedScannerOptions& o)
     m.mesh = imaging::sim::MakeBox(Eigen::Vector3d::Constant(-h), Eigen::Vector3d::Constant(h));
     m.properties = bright;
     m.mesh_to_world = Eigen::Isometry3d::Identity();
-    m.mesh_to_world.translation() = AxisPoint(p, s) + off * (std::cos(phi) * ex + std::sin(phi) * ey);
+    m.mesh_to_world.translation() =
+        AxisPoint(p, s) + off * (std::cos(phi) * ex + std::sin(phi) * ey);
     o.extra_meshes.push_back(std::move(m));
   }
 }
@@ -120,18 +122,21 @@ std::uint64_t MixSeed(std::uint64_t seed, const std::string& name, int index) {
 
 std::string Label(const Pose& p, const SimulatedScannerOptions& o) {
   char buf[160];
-  std::snprintf(buf, sizeof buf, "yaw %.1f tilt %.1f depth %.1f lateral %.1f advance %.1f c %.0f", p.yaw_deg,
-                p.tilt_deg, p.depth_mm, p.lateral_mm, p.advance_mm, o.medium_sound_speed_m_s);
+  std::snprintf(buf, sizeof buf, "yaw %.1f tilt %.1f depth %.1f lateral %.1f advance %.1f c %.0f",
+                p.yaw_deg, p.tilt_deg, p.depth_mm, p.lateral_mm, p.advance_mm,
+                o.medium_sound_speed_m_s);
   return buf;
 }
 
-SimulatedScannerOptions SceneOptions(const std::string& name, int index, std::mt19937_64& rng, Pose& pose) {
+SimulatedScannerOptions SceneOptions(const std::string& name, int index, std::mt19937_64& rng,
+                                     Pose& pose) {
   SimulatedScannerOptions o;
   o.seed = rng() % 1000000 + 1;
   o.reverberation = true;
   pose = name == "wide_poses" ? WidePose(rng, index) : ModeratePose(rng, index);
   if (name == "no_reverberation") o.reverberation = false;
-  if (name == "sound_speed") o.medium_sound_speed_m_s = (index % 3 == 0) ? 1540.0 : (index % 3 == 1) ? 1600.0 : 1482.0;
+  if (name == "sound_speed")
+    o.medium_sound_speed_m_s = (index % 3 == 0) ? 1540.0 : (index % 3 == 1) ? 1600.0 : 1482.0;
   if (name == "speckle_clutter" || name == "free_clutter") {
     o.background_scatter = 0.03;
     AddClutter(pose, rng, o);
@@ -147,16 +152,30 @@ SimulatedScannerOptions SceneOptions(const std::string& name, int index, std::mt
 
 const std::vector<VolumeClass>& VolumeClasses() {
   static const std::vector<VolumeClass> classes = {
-      {"water_tank", "default water-tank scene, reverberation on, 1482 m/s; yaw ±30° (or +180°), tilt 0–15°, tip depth 50–70 mm, lateral ±5 mm", true, false},
+      {"water_tank",
+       "default water-tank scene, reverberation on, 1482 m/s; yaw ±30° (or +180°), tilt 0–15°, tip "
+       "depth 50–70 mm, lateral ±5 mm",
+       true, false},
       {"no_reverberation", "water_tank poses without the guidewire's comet tail", true, false},
-      {"speckle_clutter", "background scatter 0.03 (×7.5) and four bright tissue cubes (3–6 mm) 7–10 mm beside the catheter", true, false},
-      {"shadowing", "water_tank poses with a weakly transmitting plate (T = 0.1) 15 mm above the sheath, shadowing 15–40 mm behind the tip", true, false},
-      {"wide_poses", "yaw ±60° (or +180°), tilt −5–25°, tip depth 40–80 mm, lateral ±10 mm, advance 0–6 mm", true, false},
-      {"sound_speed", "water_tank poses in media of 1540, 1600 and 1482 m/s (scanner assumes 1540)", true, false},
+      {"speckle_clutter",
+       "background scatter 0.03 (×7.5) and four bright tissue cubes (3–6 mm) 7–10 mm beside the "
+       "catheter",
+       true, false},
+      {"shadowing",
+       "water_tank poses with a weakly transmitting plate (T = 0.1) 15 mm above the sheath, "
+       "shadowing 15–40 mm behind the tip",
+       true, false},
+      {"wide_poses",
+       "yaw ±60° (or +180°), tilt −5–25°, tip depth 40–80 mm, lateral ±10 mm, advance 0–6 mm", true,
+       false},
+      {"sound_speed", "water_tank poses in media of 1540, 1600 and 1482 m/s (scanner assumes 1540)",
+       true, false},
       {"free_annulus", "catheter-free: annulus and tank", false, false},
       {"free_tank", "catheter-free: tank only", false, false},
-      {"free_clutter", "catheter-free: annulus, background scatter 0.03, four bright tissue cubes", false, false},
-      {"spine_phantom", "catheter-free real volume: data/plus/SpinePhantomFreehandReconstructed.mha", false, true},
+      {"free_clutter", "catheter-free: annulus, background scatter 0.03, four bright tissue cubes",
+       false, false},
+      {"spine_phantom",
+       "catheter-free real volume: data/plus/SpinePhantomFreehandReconstructed.mha", false, true},
   };
   return classes;
 }
@@ -177,8 +196,8 @@ const VolumeClass& FindVolumeClass(const std::string& name) {
   throw std::invalid_argument(m);
 }
 
-AccuracyVolume MakeAccuracyVolume(const VolumeClass& cls, int index, std::uint64_t seed, bool next_frame,
-                                  const std::filesystem::path& spine_volume) {
+AccuracyVolume MakeAccuracyVolume(const VolumeClass& cls, int index, std::uint64_t seed,
+                                  bool next_frame, const std::filesystem::path& spine_volume) {
   if (cls.real) {
     if (spine_volume.empty() || !std::filesystem::exists(spine_volume)) {
       std::string m = "spine phantom volume not found: '";
@@ -186,15 +205,16 @@ AccuracyVolume MakeAccuracyVolume(const VolumeClass& cls, int index, std::uint64
       m += "'";
       throw std::invalid_argument(m);
     }
-    return AccuracyVolume{imaging::ReadVolume(spine_volume), std::nullopt, std::nullopt, std::nullopt,
-                          spine_volume.filename().string()};
+    return AccuracyVolume{imaging::ReadVolume(spine_volume), std::nullopt, std::nullopt,
+                          std::nullopt, spine_volume.filename().string()};
   }
   std::mt19937_64 rng(MixSeed(seed, cls.name, index));
   Pose pose;
   const SimulatedScannerOptions o = SceneOptions(cls.name, index, rng, pose);
   imaging::sim::SimulatedScanner scanner(o);
   auto first = scanner.Next();
-  AccuracyVolume out{std::move(first->volume), first->truth, std::nullopt, std::nullopt, Label(pose, o)};
+  AccuracyVolume out{std::move(first->volume), first->truth, std::nullopt, std::nullopt,
+                     Label(pose, o)};
   if (next_frame && cls.catheter) {
     scanner.SetCatheterPose({o.catheter_pose.base_to_world, o.catheter_pose.advance_mm + 1.0});
     auto second = scanner.Next();

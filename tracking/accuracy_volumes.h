@@ -26,8 +26,8 @@ namespace echoservo::tracking {
 struct VolumeClass {
   std::string name;
   std::string description;
-  bool catheter = true;   // false: catheter-free (every detection is a false detection)
-  bool real = false;      // true: the real phantom volume (one volume, whatever the count)
+  bool catheter = true;  // false: catheter-free (every detection is a false detection)
+  bool real = false;     // true: the real phantom volume (one volume, whatever the count)
 };
 
 // All classes, in report order: water_tank (the default scene, moderate poses), no_reverberation,
@@ -49,7 +49,7 @@ struct AccuracyVolume {
 
 // Volume `index` of class `cls`. `spine_volume` is the real volume's file (spine_phantom only).
 // Throws std::invalid_argument when spine_phantom's file is missing or unreadable.
-AccuracyVolume MakeAccuracyVolume(const VolumeClass& cls, int index, std::uint64_t seed, bool next_frame,
-                                  const std::filesystem::path& spine_volume);
+AccuracyVolume MakeAccuracyVolume(const VolumeClass& cls, int index, std::uint64_t seed,
+                                  bool next_frame, const std::filesystem::path& spine_volume);
 
 }  // namespace echoservo::tracking

@@ -1,7 +1,6 @@
 #include "tracking/axis_profile.h"
 
 #include <Eigen/Cholesky>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -21,7 +20,8 @@ namespace {
 class Sampler {
  public:
   explicit Sampler(const imaging::Volume& v)
-      : dims_(v.dims()), origin_(v.origin_mm()),
+      : dims_(v.dims()),
+        origin_(v.origin_mm()),
         to_index_(Eigen::Matrix3d(v.direction() * v.spacing_mm().asDiagonal()).inverse()),
         voxels_(v.voxels().data()) {}
 
@@ -39,13 +39,16 @@ class Sampler {
       frac[a] = c - base[a];
     }
     const std::ptrdiff_t sx = dims_.x() > 1 ? 1 : 0, sy = dims_.y() > 1 ? dims_.x() : 0,
-                         sz = dims_.z() > 1 ? static_cast<std::ptrdiff_t>(dims_.x()) * dims_.y() : 0;
-    const std::uint8_t* b0 =
-        voxels_ + base[0] + static_cast<std::ptrdiff_t>(dims_.x()) * (base[1] + static_cast<std::ptrdiff_t>(dims_.y()) * base[2]);
+                         sz =
+                             dims_.z() > 1 ? static_cast<std::ptrdiff_t>(dims_.x()) * dims_.y() : 0;
+    const std::uint8_t* b0 = voxels_ + base[0] +
+                             static_cast<std::ptrdiff_t>(dims_.x()) *
+                                 (base[1] + static_cast<std::ptrdiff_t>(dims_.y()) * base[2]);
     double value = 0.0;
     for (int corner = 0; corner < 8; ++corner) {
       const int dx = corner & 1, dy = (corner >> 1) & 1, dz = (corner >> 2) & 1;
-      const double w = (dx ? frac[0] : 1.0 - frac[0]) * (dy ? frac[1] : 1.0 - frac[1]) * (dz ? frac[2] : 1.0 - frac[2]);
+      const double w = (dx ? frac[0] : 1.0 - frac[0]) * (dy ? frac[1] : 1.0 - frac[1]) *
+                       (dz ? frac[2] : 1.0 - frac[2]);
       if (w == 0.0) continue;
       value += w * b0[dx * sx + dy * sy + dz * sz];
     }
@@ -65,8 +68,8 @@ class Sampler {
 class DiscProfile {
  public:
   enum class Reduce { kMax, kMean };
-  DiscProfile(const imaging::Volume& v, const Line3& l, const Eigen::Vector3d& u, const Eigen::Vector3d& w, double r,
-              Reduce reduce = Reduce::kMax)
+  DiscProfile(const imaging::Volume& v, const Line3& l, const Eigen::Vector3d& u,
+              const Eigen::Vector3d& w, double r, Reduce reduce = Reduce::kMax)
       : sample_(v), line_(l), reduce_(reduce) {
     for (int k = 0; k < 8; ++k) {
       const double a = k * std::numbers::pi / 4;
@@ -103,9 +106,11 @@ class DiscProfile {
 // wire's echo).
 class FirstEchoDiscProfile {
  public:
-  FirstEchoDiscProfile(const imaging::Volume& v, const Line3& l, const Eigen::Vector3d& u, const Eigen::Vector3d& w,
-                       double r, double look_back_mm)
-      : volume_(v), sample_(v), line_(l),
+  FirstEchoDiscProfile(const imaging::Volume& v, const Line3& l, const Eigen::Vector3d& u,
+                       const Eigen::Vector3d& w, double r, double look_back_mm)
+      : volume_(v),
+        sample_(v),
+        line_(l),
         step_(0.5 * v.spacing_mm().minCoeff()),
         steps_(static_cast<int>(std::ceil(look_back_mm / step_))) {
     offsets_[0] = Eigen::Vector3d::Zero();
@@ -222,11 +227,16 @@ double SurfaceFitResidual(const std::vector<double>& amp, double s0, double sigm
 double FitSurfaceEcho(const std::vector<double>& amp, double ds) {
   const double n = static_cast<double>(amp.size());
   double best_err = std::numeric_limits<double>::infinity(), best_s0 = 0.0, best_sigma_mm = 0.3;
-  auto search = [&](double s0_lo, double s0_hi, double s0_step, double sg_lo, double sg_hi, double sg_step) {
+  auto search = [&](double s0_lo, double s0_hi, double s0_step, double sg_lo, double sg_hi,
+                    double sg_step) {
     for (double sigma_mm = sg_lo; sigma_mm <= sg_hi + 1e-9; sigma_mm += sg_step)
       for (double s0 = s0_lo; s0 <= s0_hi + 1e-9; s0 += s0_step) {
         const double err = SurfaceFitResidual(amp, s0, sigma_mm / ds);
-        if (err < best_err) { best_err = err; best_s0 = s0; best_sigma_mm = sigma_mm; }
+        if (err < best_err) {
+          best_err = err;
+          best_s0 = s0;
+          best_sigma_mm = sigma_mm;
+        }
       }
   };
   search(0.0, n - 1, 0.125 / ds, 0.15, 1.0, 0.1);
@@ -242,7 +252,8 @@ double EchoAmplitude(double display, double dynamic_range_db) {
   return std::pow(10.0, display / 255.0 * dynamic_range_db / 20.0);
 }
 
-TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, const EdgeOptions& edge) {
+TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg,
+                    const EdgeOptions& edge) {
   const double tip_fraction = edge.edge_fraction;
   auto A = [&](double x) { return EchoAmplitude(x, edge.dynamic_range_db); };
   TipEstimate out;
@@ -272,10 +283,13 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, cons
       sum += prof[static_cast<std::size_t>(q)];
       ++n;
     }
-    if (n > 0 && !std::isnan(prof[static_cast<std::size_t>(i)]) && prof[static_cast<std::size_t>(i)] > 0) sm[static_cast<std::size_t>(i)] = sum / n;
+    if (n > 0 && !std::isnan(prof[static_cast<std::size_t>(i)]) &&
+        prof[static_cast<std::size_t>(i)] > 0)
+      sm[static_cast<std::size_t>(i)] = sum / n;
   }
   std::vector<double> valid;
-  for (double x : sm) if (!std::isnan(x)) valid.push_back(x);
+  for (double x : sm)
+    if (!std::isnan(x)) valid.push_back(x);
   if (valid.size() < 8) return out;
   std::sort(valid.begin(), valid.end());
   const double p90 = valid[valid.size() * 9 / 10];
@@ -289,7 +303,10 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, cons
     if (!std::isnan(x) && x >= thr) {
       if (a < 0 || i - last > gap) a = i;
       last = i;
-      if (best_a < 0 || last - a > best_b - best_a) { best_a = a; best_b = last; }
+      if (best_a < 0 || last - a > best_b - best_a) {
+        best_a = a;
+        best_b = last;
+      }
     }
   }
   if (best_a < 0) return out;
@@ -307,7 +324,8 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, cons
   for (int t = 0; t < static_cast<int>(3.0 / ds); ++t) {
     const int q = tip_i - step * t;
     if (q < best_a || q > best_b) break;
-    if (!std::isnan(sm[static_cast<std::size_t>(q)])) loc.push_back(sm[static_cast<std::size_t>(q)]);
+    if (!std::isnan(sm[static_cast<std::size_t>(q)]))
+      loc.push_back(sm[static_cast<std::size_t>(q)]);
   }
   std::sort(loc.begin(), loc.end());
   const double level = loc.empty() ? p90 : loc[loc.size() / 2];
@@ -316,14 +334,16 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, cons
   {
     // From inside the run (3 mm back from its end), outward to the first sample below cut.
     int q = tip_i;
-    for (int t = 0; t < static_cast<int>(3.0 / ds) && q - step >= best_a && q - step <= best_b; ++t) q -= step;
+    for (int t = 0; t < static_cast<int>(3.0 / ds) && q - step >= best_a && q - step <= best_b; ++t)
+      q -= step;
     while (q + step >= 0 && q + step < N && !std::isnan(sm[static_cast<std::size_t>(q + step)]) &&
            A(prof[static_cast<std::size_t>(q + step)]) >= cut)
       q += step;
     const int r = q + step;
     tip_s = s_val[static_cast<std::size_t>(q)];
     if (r >= 0 && r < N && !std::isnan(prof[static_cast<std::size_t>(r)])) {
-      const double x0 = A(prof[static_cast<std::size_t>(q)]), x1 = A(prof[static_cast<std::size_t>(r)]);
+      const double x0 = A(prof[static_cast<std::size_t>(q)]),
+                   x1 = A(prof[static_cast<std::size_t>(r)]);
       if (x0 > x1) tip_s += step * ds * std::clamp((x0 - cut) / (x0 - x1), 0.0, 1.0);
     }
   }
@@ -342,7 +362,10 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, cons
       double sum = 0;
       int n = 0;
       for (int t = -2; t <= 2; ++t)
-        if (!std::isnan(fe[static_cast<std::size_t>(i + t)])) { sum += fe[static_cast<std::size_t>(i + t)]; ++n; }
+        if (!std::isnan(fe[static_cast<std::size_t>(i + t)])) {
+          sum += fe[static_cast<std::size_t>(i + t)];
+          ++n;
+        }
       if (n > 0) inside.push_back(sum / n);
     }
     if (inside.size() >= 4) {
@@ -350,14 +373,16 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg, cons
       const double fe_level = inside[inside.size() / 2];
       const double fe_cut = A(bg) + tip_fraction * (A(fe_level) - A(bg));
       int q = 0;
-      while (q + 1 < static_cast<int>(fe.size()) && !std::isnan(fe[static_cast<std::size_t>(q + 1)]) &&
+      while (q + 1 < static_cast<int>(fe.size()) &&
+             !std::isnan(fe[static_cast<std::size_t>(q + 1)]) &&
              A(fe[static_cast<std::size_t>(q + 1)]) >= fe_cut)
         ++q;
       if (q > 0 && q + 1 < static_cast<int>(fe.size()) && fe_level > bg) {
         double s_edge = fs_val[static_cast<std::size_t>(q)];
         const double x0 = A(fe[static_cast<std::size_t>(q)]);
         const double x1 = A(fe[static_cast<std::size_t>(q + 1)]);
-        if (!std::isnan(x1) && x0 > x1) s_edge += step * ds * std::clamp((x0 - fe_cut) / (x0 - x1), 0.0, 1.0);
+        if (!std::isnan(x1) && x0 > x1)
+          s_edge += step * ds * std::clamp((x0 - fe_cut) / (x0 - x1), 0.0, 1.0);
         tip_s = s_edge;
       }
     }
@@ -403,7 +428,10 @@ TargetEstimate FindTarget(const imaging::Volume& v, const TipEstimate& tip, doub
       double sum = 0;
       int n = 0;
       for (int t = -1; t <= 1; ++t)
-        if (i + t >= 0 && i + t < M) { sum += fp[static_cast<std::size_t>(i + t)]; ++n; }
+        if (i + t >= 0 && i + t < M) {
+          sum += fp[static_cast<std::size_t>(i + t)];
+          ++n;
+        }
       fs[static_cast<std::size_t>(i)] = sum / n;
     }
     auto at = [&](int i) { return fs[static_cast<std::size_t>(i)]; };
@@ -413,7 +441,8 @@ TargetEstimate FindTarget(const imaging::Volume& v, const TipEstimate& tip, doub
     double fbg = bg, spread = 0.0;
     {
       std::vector<double> near;
-      for (int i = start; i < std::min(M, start + static_cast<int>(4.0 / ds)); ++i) near.push_back(at(i));
+      for (int i = start; i < std::min(M, start + static_cast<int>(4.0 / ds)); ++i)
+        near.push_back(at(i));
       if (!near.empty()) {
         const MedianMad m = ComputeMedianMad(near);
         fbg = m.median;
@@ -431,7 +460,8 @@ TargetEstimate FindTarget(const imaging::Volume& v, const TipEstimate& tip, doub
       int onset = i;
       while (onset > start && at(onset - 1) > fbg + 0.5 * rise) --onset;
       std::vector<double> amp;
-      const int i0 = std::max(0, onset - static_cast<int>(1.5 / ds)), i1 = std::min(M - 1, onset + static_cast<int>(2.5 / ds));
+      const int i0 = std::max(0, onset - static_cast<int>(1.5 / ds)),
+                i1 = std::min(M - 1, onset + static_cast<int>(2.5 / ds));
       for (int k = i0; k <= i1; ++k) amp.push_back(A(fp[static_cast<std::size_t>(k)]));
       const double s = (i0 + FitSurfaceEcho(amp, ds)) * ds;
       out.found = true;

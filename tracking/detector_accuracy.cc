@@ -22,12 +22,12 @@ struct Sample {
   int volumes = 0, detected = 0;  // catheter volumes
   int free_volumes = 0, false_detections = 0;
   int errors = 0;
-  std::vector<double> angle, offset, tip, target, ms;
+  std::vector<double> angle_deg, offset_mm, tip_mm, target_mm, detect_ms;
 };
 
 struct Timed {
   CatheterDetection d;
-  double ms = 0;
+  double detect_ms = 0;
   bool error = false;
 };
 
@@ -41,7 +41,8 @@ Timed Time(F&& detect) {
     t.error = true;
     t.d = CatheterDetection{};
   }
-  t.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  t.detect_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return t;
 }
 
@@ -52,7 +53,8 @@ struct Errors {
 
 Errors Measure(const CatheterDetection& d, const imaging::FrameGroundTruth& t) {
   Errors e;
-  e.angle_deg = AngleBetweenLines(d.axis, Line3{t.axis_point_mm, t.axis_direction}) * 180.0 / std::numbers::pi;
+  e.angle_deg = AngleBetweenLines(d.axis, Line3{t.axis_point_mm, t.axis_direction}) * 180.0 /
+                std::numbers::pi;
   e.offset_mm = PointToLineDistance(d.axis, t.tip_mm);
   e.tip_mm = (d.tip_mm - t.tip_mm).norm();
   e.has_target = t.target_visible;
@@ -69,10 +71,12 @@ struct Recorder {
   int index;
   const std::string& label;
 
-  void Add(const std::string& method, const Timed& t, const imaging::FrameGroundTruth* truth, bool axis_only) {
-    VolumeRecord rec{vc.name, index, label, method, t.d.found, 0, 0, 0, 0, t.d.confidence, t.ms};
+  void Add(const std::string& method, const Timed& t, const imaging::FrameGroundTruth* truth,
+           bool axis_only) {
+    VolumeRecord rec{vc.name, index, label, method,         t.d.found,  0,
+                     0,       0,     0,     t.d.confidence, t.detect_ms};
     for (Sample* s : {&cls[method], &all[method]}) {
-      s->ms.push_back(t.ms);
+      s->detect_ms.push_back(t.detect_ms);
       s->errors += t.error ? 1 : 0;
       if (!vc.catheter) {
         ++s->free_volumes;
@@ -83,15 +87,15 @@ struct Recorder {
       if (!t.d.found || truth == nullptr) continue;
       ++s->detected;
       const Errors e = Measure(t.d, *truth);
-      s->angle.push_back(e.angle_deg);
-      s->offset.push_back(e.offset_mm);
+      s->angle_deg.push_back(e.angle_deg);
+      s->offset_mm.push_back(e.offset_mm);
       rec.angle_deg = e.angle_deg;
       rec.offset_mm = e.offset_mm;
       if (axis_only) continue;
-      s->tip.push_back(e.tip_mm);
+      s->tip_mm.push_back(e.tip_mm);
       rec.tip_mm = e.tip_mm;
       if (e.has_target) {
-        s->target.push_back(e.target_mm);
+        s->target_mm.push_back(e.target_mm);
         rec.target_mm = e.target_mm;
       }
     }
@@ -112,13 +116,13 @@ MethodStats Summarise(const std::string& method, const Sample& s) {
   m.detected = s.detected + s.false_detections;
   m.errors = s.errors;
   m.detection_rate = s.volumes > 0 ? static_cast<double>(s.detected) / s.volumes : 0.0;
-  m.angle_deg = ComputeQuantiles(s.angle);
-  m.offset_mm = ComputeQuantiles(s.offset);
-  m.tip_mm = ComputeQuantiles(s.tip);
-  m.target_mm = ComputeQuantiles(s.target);
+  m.angle_deg = ComputeQuantiles(s.angle_deg);
+  m.offset_mm = ComputeQuantiles(s.offset_mm);
+  m.tip_mm = ComputeQuantiles(s.tip_mm);
+  m.target_mm = ComputeQuantiles(s.target_mm);
   m.false_detections = s.false_detections;
-  m.mean_ms = Mean(s.ms);
-  m.median_ms = ComputeQuantiles(s.ms).median;
+  m.mean_detect_ms = Mean(s.detect_ms);
+  m.median_detect_ms = ComputeQuantiles(s.detect_ms).median;
   return m;
 }
 
@@ -225,7 +229,8 @@ DetectorAccuracyReport RunDetectorAccuracy(const DetectorAccuracyOptions& o) {
     for (int i = 0; i < n; ++i) {
       const AccuracyVolume av = MakeAccuracyVolume(vc, i, o.seed, o.tracking, o.spine_volume);
       if (vc.catheter && !(av.truth && av.truth->catheter_visible)) {
-        report.skipped.push_back(vc.name + " #" + std::to_string(i) + ": catheter tip outside the view (" + av.label + ")");
+        report.skipped.push_back(vc.name + " #" + std::to_string(i) +
+                                 ": catheter tip outside the view (" + av.label + ")");
         continue;
       }
       Recorder rec{cls, all, report, vc, i, av.label};
@@ -242,8 +247,9 @@ DetectorAccuracyReport RunDetectorAccuracy(const DetectorAccuracyOptions& o) {
         for (std::size_t r = first; r < report.records.size(); ++r) {
           const VolumeRecord& v = report.records[r];
           char buf[160];
-          std::snprintf(buf, sizeof buf, " %s found %d angle %.3f tip %.3f target %.3f (%.1f ms);", v.method.c_str(),
-                        v.found ? 1 : 0, v.angle_deg, v.tip_mm, v.target_mm, v.ms);
+          std::snprintf(buf, sizeof buf, " %s found %d angle %.3f tip %.3f target %.3f (%.1f ms);",
+                        v.method.c_str(), v.found ? 1 : 0, v.angle_deg, v.tip_mm, v.target_mm,
+                        v.detect_ms);
           line += buf;
         }
         o.log(line);

@@ -57,7 +57,9 @@ struct Candidate {
 class FirstEchoTest {
  public:
   FirstEchoTest(const imaging::Volume& v, double first_echo_mm)
-      : v_(v), beams_(v), step_(v.spacing_mm().minCoeff()),
+      : v_(v),
+        beams_(v),
+        step_(v.spacing_mm().minCoeff()),
         look_steps_(first_echo_mm > 0 ? static_cast<int>(std::ceil(first_echo_mm / step_)) : 0),
         // Physical displacement → index displacement (Volume::PhysicalToIndex is affine).
         to_index_(Eigen::Matrix3d(v.direction() * v.spacing_mm().asDiagonal()).inverse()) {}
@@ -74,7 +76,8 @@ class FirstEchoTest {
       // x + 0.5 > 0 is the truncation of x + 0.5; x ≤ −0.5 rounds below 0, out of the volume.
       const Eigen::Vector3d at = idx + q * back;
       if (at.x() <= 0 || at.y() <= 0 || at.z() <= 0) break;
-      const long qi = static_cast<long>(at.x()), qj = static_cast<long>(at.y()), qk = static_cast<long>(at.z());
+      const long qi = static_cast<long>(at.x()), qj = static_cast<long>(at.y()),
+                 qk = static_cast<long>(at.z());
       if (qi >= dims.x() || qj >= dims.y() || qk >= dims.z()) break;
       if (qi == c.i && qj == c.j && qk == c.k) continue;
       if (vox[qi + qj * sy + qk * sz] > c.value) return false;
@@ -95,8 +98,8 @@ class FirstEchoTest {
 // slice, the rows that can come within `radius` are those where its minimum over i is small
 // enough; per row, the i range solves it. Slices in parallel (TBB), concatenated in order:
 // the result does not depend on the thread schedule.
-std::vector<Candidate> GatherCandidates(const imaging::Volume& v, const Line3& line, double radius, double bg,
-                                        const Eigen::Vector3d& origin) {
+std::vector<Candidate> GatherCandidates(const imaging::Volume& v, const Line3& line, double radius,
+                                        double bg, const Eigen::Vector3d& origin) {
   const Eigen::Vector3i dims = v.dims();
   const Eigen::Vector3d e = line.direction;
   auto perp = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return x - x.dot(e) * e; };
@@ -115,7 +118,8 @@ std::vector<Candidate> GatherCandidates(const imaging::Volume& v, const Line3& l
     const Eigen::Vector3d c = perp(o + k * dz - line.point);
     const double ac = a.dot(c), bc = b.dot(c), cc = c.squaredNorm();
     int j0 = 0, j1 = 0;
-    const bool rows = aa > 1e-12 ? QuadraticRange(bb - ab * ab / aa, bc - ac * ab / aa, cc - ac * ac / aa - r2, dims.y(), j0, j1)
+    const bool rows = aa > 1e-12 ? QuadraticRange(bb - ab * ab / aa, bc - ac * ab / aa,
+                                                  cc - ac * ac / aa - r2, dims.y(), j0, j1)
                                  : QuadraticRange(bb, bc, cc - r2, dims.y(), j0, j1);
     if (!rows) return;
     for (int j = j0; j <= j1; ++j) {
@@ -155,10 +159,12 @@ void CarryFirstEchoAnswers(const std::vector<Candidate>& before, std::vector<Can
 // (in parallel) and keep the answer.
 std::vector<Echo> FirstEchoes(std::vector<Candidate>& pool, const FirstEchoTest& first_echo,
                               const Eigen::Vector3d& origin) {
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pool.size(), 512), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t n = r.begin(); n != r.end(); ++n)
-      if (pool[n].first_echo < 0) pool[n].first_echo = first_echo(pool[n], origin) ? 1 : 0;
-  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pool.size(), 512),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t n = r.begin(); n != r.end(); ++n)
+                        if (pool[n].first_echo < 0)
+                          pool[n].first_echo = first_echo(pool[n], origin) ? 1 : 0;
+                    });
   std::vector<Echo> out;
   for (const auto& c : pool)
     if (c.first_echo > 0) out.push_back({c.p, c.w});
@@ -247,11 +253,14 @@ void EchoAxisFitOptions::Validate() const {
   };
   if (!(fit_radius_mm > 0 && fit_radius_mm < 50)) bad("fit_radius_mm", "must be in (0, 50)");
   if (!(first_echo_mm >= 0 && first_echo_mm < 50)) bad("first_echo_mm", "must be in [0, 50)");
-  if (!(sheath_diameter_mm >= 0 && sheath_diameter_mm <= 20)) bad("sheath_diameter_mm", "must be in [0, 20]");
+  if (!(sheath_diameter_mm >= 0 && sheath_diameter_mm <= 20))
+    bad("sheath_diameter_mm", "must be in [0, 20]");
   if (!(wire_diameter_mm >= 0 && wire_diameter_mm <= sheath_diameter_mm))
     bad("wire_diameter_mm", "must be in [0, sheath_diameter_mm]");
-  if (!(min_sheath_span_mm >= 0 && std::isfinite(min_sheath_span_mm))) bad("min_sheath_span_mm", "must be finite, ≥ 0");
-  if (!(echo_level_fraction >= 0 && echo_level_fraction < 1)) bad("echo_level_fraction", "must be in [0, 1)");
+  if (!(min_sheath_span_mm >= 0 && std::isfinite(min_sheath_span_mm)))
+    bad("min_sheath_span_mm", "must be finite, ≥ 0");
+  if (!(echo_level_fraction >= 0 && echo_level_fraction < 1))
+    bad("echo_level_fraction", "must be in [0, 1)");
 }
 
 Eigen::Vector3d BeamDirectionAt(const imaging::Volume& v, const Eigen::Vector3d& p_mm) {
@@ -269,8 +278,8 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
   std::vector<Candidate> pool;
   double threshold = bg;
   for (double f : {1.0, 0.8, 0.6}) {
-    std::vector<Candidate> next =
-        GatherCandidates(v, Line3{line.point + origin, line.direction}, f * o.fit_radius_mm, threshold, origin);
+    std::vector<Candidate> next = GatherCandidates(v, Line3{line.point + origin, line.direction},
+                                                   f * o.fit_radius_mm, threshold, origin);
     if (pool.empty() && o.echo_level_fraction > 0 && !next.empty()) {
       // The catheter's echo level: the 99th percentile of the cylinder's voxels above the
       // background (the catheter fills a few per cent of it; speckle the rest). Only voxels
@@ -311,11 +320,13 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
         nrm[i] = bp.norm() > 1e-9 ? Eigen::Vector3d(bp.normalized()) : Eigen::Vector3d::Zero();
       }
       std::iota(order.begin(), order.end(), std::size_t{0});
-      std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return s[a] < s[b]; });
+      std::sort(order.begin(), order.end(),
+                [&](std::size_t a, std::size_t b) { return s[a] < s[b]; });
       // `lo`: running moments of the k echoes with the smallest s (the same sums, in the same
       // order, as a table of prefix moments, without storing one per echo); `hi` the rest.
       Moments total;
-      for (std::size_t k = 0; k < n; ++k) total.Add(echoes[order[k]].p, nrm[order[k]], echoes[order[k]].w);
+      for (std::size_t k = 0; k < n; ++k)
+        total.Add(echoes[order[k]].p, nrm[order[k]], echoes[order[k]].w);
       Moments lo, best_lo = total;
       double best = std::numeric_limits<double>::infinity();
       std::size_t best_k = n;
@@ -353,8 +364,9 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
         // The sheath alone gives the axis when it spans enough of the line: a metal wire's
         // echo is spread behind its near wall by reverberation inside it, so its echo locus
         // is not ρ from its axis; the wire then only places the tip (FindTip).
-        const bool sheath_only = sheath.w > 0 && SpanMm(s, order, best_side > 0 ? 0 : best_k,
-                                                       best_side > 0 ? best_k : n) >= o.min_sheath_span_mm;
+        const bool sheath_only =
+            sheath.w > 0 && SpanMm(s, order, best_side > 0 ? 0 : best_k,
+                                   best_side > 0 ? best_k : n) >= o.min_sheath_span_mm;
         sheath.Shifted(R, W, m1, m2);
         if (!sheath_only) wire.Shifted(rho, W, m1, m2);
       }

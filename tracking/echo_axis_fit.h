@@ -1,31 +1,13 @@
-// Full-resolution fit of the catheter axis to its echoes, modelling where a tube echoes.
+// Full-resolution fit of the catheter axis to its echoes, modelling where a tube echoes: a
+// pulse-echo beam sees a tube at its near wall, r from its axis towards the transducer, so a
+// line through the echoes of a sheath (R) and its guidewire (ρ) is tilted by (R − ρ)/length.
 //
-// A pulse-echo beam sees a tube (sheath, guidewire) at its near wall: the first echo of a
-// tube of radius r lies r from its axis, towards the transducer, on the normal
-// n = b⊥ / |b⊥| (b the beam direction at the echo, b⊥ its part ⟂ the axis). A catheter is
-// a sheath of radius R with a thinner guidewire of radius ρ protruding from it, so the echo
-// locus is the axis offset by R along the shaft and by ρ beyond the sheath end: a line
-// through all echoes is tilted by (R − ρ) / (visible length) — degrees for a 2.5 mm sheath.
-//
-// The fit: (1) the first echoes near the search line (voxels with no brighter voxel up to
-// `first_echo_mm` nearer the transducer along the beam: comet tails and the far wall lie
-// behind) above a threshold `echo_level_fraction` of the way from the background to the
-// catheter's echo level (the 99th percentile of the voxels near the line: speckle fills the
-// rest) are gathered, weighted by (value − threshold)², and a TLS line is fitted to them in
-// shrinking cylinders; (2) each echo is moved onto the axis by r(s) along its n, with
-// r(s) = R on the sheath side and ρ on the wire side of a breakpoint s_b, and the axis is
-// the TLS line of the moved points; s_b and the side the wire is on are chosen by the least
-// weighted residual (both sides, s_b every 0.25 mm). The final axis is the TLS line of the
-// moved sheath echoes alone when they span ≥ `min_sheath_span_mm`: a metal guidewire's echo
-// is spread behind its near wall by reverberation inside the wire (0.3–0.5 mm deeper than
-// the wall in simulated volumes), while the sheath's specular near-wall echo is not. With
-// R = ρ = 0 the echo line itself is returned.
-//
-// Beams: the probe frame's origin is the apex of the pyramidal scan and +z its axis
-// (imaging/sim/probe.h); a point's beam runs from the apex (Volume::image_to_probe gives the
-// apex in the image frame); a point not in front of the apex uses the probe's +z.
-//
-// Units: mm in the volume's image frame.
+// In: a Volume, a start line near the catheter, the background voxel value and the catheter's
+// outer diameters (mm; 0: the echoes are the axis). Out: the axis and the echoes' own line in
+// the volume's image frame (mm). Beams run from the probe apex (Volume::image_to_probe).
+// Errors: Validate throws std::invalid_argument naming the field; FitEchoAxis returns empty
+// when fewer than 4 echoes lie near the start line.
+// Details: docs/detector.md#algorithm (step 4)
 #pragma once
 
 #include <optional>
@@ -50,13 +32,13 @@ struct EchoAxisFitOptions {
 };
 
 struct EchoAxisFit {
-  Line3 axis;                  // the catheter's axis (sign of direction arbitrary)
-  Line3 echo_line;             // TLS line of the echoes themselves
-  bool wire_found = false;     // a sheath/wire breakpoint improved the fit
-  double sheath_end_s = 0.0;   // breakpoint, coordinate along `axis` (valid if wire_found)
-  double wire_direction = 0;   // +1: the wire lies at s > sheath_end_s along axis.direction
+  Line3 axis;                 // the catheter's axis (sign of direction arbitrary)
+  Line3 echo_line;            // TLS line of the echoes themselves
+  bool wire_found = false;    // a sheath/wire breakpoint improved the fit
+  double sheath_end_s = 0.0;  // breakpoint, coordinate along `axis` (valid if wire_found)
+  double wire_direction = 0;  // +1: the wire lies at s > sheath_end_s along axis.direction
   int echo_count = 0;
-  double rms_mm = 0.0;         // weighted RMS distance of the moved echoes to the axis
+  double rms_mm = 0.0;  // weighted RMS distance of the moved echoes to the axis
 };
 
 // Beam direction (unit, away from the transducer) at image-frame point p.

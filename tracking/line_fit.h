@@ -1,16 +1,12 @@
 // Straight 3D lines and their least-squares fit to points: the model of a catheter shaft
 // segment seen in a volume.
 //
-// A Line3 is a point on the line and a unit direction, in the frame and length unit of the
-// points it was built from (mm in the image or reference frame in this project). The sign
-// of the direction carries no meaning: angles between lines ignore it.
-//
-// FitLine is total (orthogonal) least squares: it minimises Σ w_i · d_i², d_i the
-// perpendicular distance of point i to the line. The solution passes through the weighted
-// centroid along the principal eigenvector of the weighted scatter matrix.
-// FitLineRobust is an M-estimator solved by iteratively reweighted least squares (IRLS):
-// each pass refits with weights ψ(d_i / σ̂)/(d_i / σ̂) of a Huber or Tukey biweight loss,
-// where the scale σ̂ is re-estimated every pass from the median residual distance.
+// A Line3 is a point and a unit direction, in the frame and length unit of the points it was
+// built from (mm in the image or reference frame in this project); the direction's sign
+// carries no meaning (angles between lines ignore it). FitLine: total (orthogonal) least
+// squares. FitLineRobust: a Huber or Tukey M-estimator by iteratively reweighted least squares.
+// Errors: std::invalid_argument, in the cases listed on each function.
+// Details: docs/detector.md#straight-line-fits-trackingline_fith
 #pragma once
 
 #include <Eigen/Core>

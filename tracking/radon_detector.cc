@@ -1,9 +1,5 @@
 #include "tracking/radon_detector.h"
 
-#include "tracking/axis_profile.h"
-#include "tracking/radon_transform.h"
-#include "tracking/tube_check.h"
-
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
@@ -15,6 +11,10 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "tracking/axis_profile.h"
+#include "tracking/radon_transform.h"
+#include "tracking/tube_check.h"
 
 namespace echoservo::tracking {
 namespace {
@@ -41,8 +41,8 @@ struct SearchLevels {
 
 // Levels measured on `v`, the scene's intensity levels with them. The volume is read once:
 // the fine grid, pooled again, is the coarse grid (max of maxima).
-SearchLevels MeasuredLevels(const imaging::Volume& v, const RadonDetectorOptions& o, const RadonWindow* roi,
-                            SceneBaseline& scene) {
+SearchLevels MeasuredLevels(const imaging::Volume& v, const RadonDetectorOptions& o,
+                            const RadonWindow* roi, SceneBaseline& scene) {
   const int f1 = o.coarse_factor, f2 = std::max(1, f1 / 2);
   scene.voxel_background = MedianNonZeroVoxel(v);
   const PooledGrid fine_grid = MaxPool(v, f2);
@@ -57,8 +57,8 @@ SearchLevels MeasuredLevels(const imaging::Volume& v, const RadonDetectorOptions
 
 // Levels of the tracking region alone, with the scene's known intensity levels: only the
 // voxels near the previous axis are read.
-SearchLevels TrackingLevels(const imaging::Volume& v, const RadonDetectorOptions& o, const RadonWindow& roi,
-                            const SceneBaseline& scene) {
+SearchLevels TrackingLevels(const imaging::Volume& v, const RadonDetectorOptions& o,
+                            const RadonWindow& roi, const SceneBaseline& scene) {
   const int f1 = o.coarse_factor, f2 = std::max(1, f1 / 2);
   SearchLevels L;
   L.coarse = MakeRadonLevel(v, MaxPool(v, f1, roi), o.max_depth_fraction, &roi, scene.coarse);
@@ -69,7 +69,9 @@ SearchLevels TrackingLevels(const imaging::Volume& v, const RadonDetectorOptions
 }  // namespace
 
 void RadonDetectorOptions::Validate() const {
-  auto bad = [](const std::string& f) { throw std::invalid_argument("RadonDetectorOptions: bad " + f); };
+  auto bad = [](const std::string& f) {
+    throw std::invalid_argument("RadonDetectorOptions: bad " + f);
+  };
   if (coarse_factor < 2 || coarse_factor > 16) bad("coarse_factor");
   if (coarse_directions < 16 || coarse_directions > 100000) bad("coarse_directions");
   if (!(fine_cone_rad > 0 && fine_cone_rad < 1)) bad("fine_cone_rad");
@@ -87,7 +89,8 @@ void RadonDetectorOptions::Validate() const {
   if (!(max_spacing_ratio >= 1 && std::isfinite(max_spacing_ratio))) bad("max_spacing_ratio");
   if (!(level_min_contrast >= 0 && level_min_contrast < 1)) bad("level_min_contrast");
   if (max_candidates < 1 || max_candidates > 16) bad("max_candidates");
-  if (!(candidate_separation_rad > 0 && candidate_separation_rad < 1.6)) bad("candidate_separation_rad");
+  if (!(candidate_separation_rad > 0 && candidate_separation_rad < 1.6))
+    bad("candidate_separation_rad");
 }
 
 RadonDetector::RadonDetector(RadonDetectorOptions options) : options_(std::move(options)) {
@@ -98,13 +101,15 @@ CatheterDetection RadonDetector::Detect(const imaging::Volume& volume) const {
   return Run(volume, nullptr, nullptr);
 }
 
-CatheterDetection RadonDetector::Detect(const imaging::Volume& volume, const Line3& previous) const {
+CatheterDetection RadonDetector::Detect(const imaging::Volume& volume,
+                                        const Line3& previous) const {
   auto r = Run(volume, &previous, nullptr);
   if (r.found && r.confidence >= options_.min_confidence) return r;
   return Run(volume, nullptr, nullptr);
 }
 
-CatheterDetection RadonDetector::Detect(const imaging::Volume& volume, const CatheterDetection& previous) const {
+CatheterDetection RadonDetector::Detect(const imaging::Volume& volume,
+                                        const CatheterDetection& previous) const {
   if (!previous.found) return Run(volume, nullptr, nullptr);
   auto r = Run(volume, &previous.axis, &previous.baseline);
   if (r.found && r.confidence >= options_.min_confidence) return r;
@@ -113,7 +118,10 @@ CatheterDetection RadonDetector::Detect(const imaging::Volume& volume, const Cat
 
 CatheterDetection RadonDetector::Track(const imaging::Volume& volume) {
   auto r = previous_ ? Detect(volume, *previous_) : Detect(volume);
-  if (r.found) previous_ = r; else previous_.reset();
+  if (r.found)
+    previous_ = r;
+  else
+    previous_.reset();
   return r;
 }
 
@@ -131,13 +139,15 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
   // footprint (1 bin) of a peak at the window's edge, plus a bin for the cone's tilt.
   std::optional<RadonWindow> roi;
   if (previous)
-    roi = RadonWindow{Line3{previous->point, previous->direction.normalized()},
-                      options_.tracking_window_mm + 4 * options_.coarse_factor * std::cbrt(sp.prod())};
+    roi = RadonWindow{
+        Line3{previous->point, previous->direction.normalized()},
+        options_.tracking_window_mm + 4 * options_.coarse_factor * std::cbrt(sp.prod())};
   // A tracked frame reuses the scene's statistics of the frame it started from (only the
   // tracking region is read); otherwise they are measured on this volume.
   SceneBaseline scene = known && known->valid ? *known : SceneBaseline{};
-  const SearchLevels levels = scene.valid && roi ? TrackingLevels(v, options_, *roi, scene)
-                                                 : MeasuredLevels(v, options_, roi ? &*roi : nullptr, scene);
+  const SearchLevels levels = scene.valid && roi
+                                  ? TrackingLevels(v, options_, *roi, scene)
+                                  : MeasuredLevels(v, options_, roi ? &*roi : nullptr, scene);
   out.baseline = scene;
   const double bg = scene.voxel_background;
   const RadonLevel& L1 = levels.coarse;
@@ -155,7 +165,8 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
     window = &window_storage;
     Eigen::Vector3d pd = previous->direction;
     if (pd.z() < 0) pd = -pd;
-    const int steps = std::max(3, static_cast<int>(std::ceil(2 * options_.tracking_cone_rad / 0.03)) | 1);
+    const int steps =
+        std::max(3, static_cast<int>(std::ceil(2 * options_.tracking_cone_rad / 0.03)) | 1);
     // Coarse to fine over the cone's grid too (a checkerboard, then the rest next to its best
     // directions): only the best line is used here.
     const double spacing_rad = 2 * options_.tracking_cone_rad / (steps - 1);
@@ -174,13 +185,15 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
   // directions all see the line, and the tracking region holds little else).
   if (!scene.valid) {
     const bool have_scores =
-        previous ? SetScoreStats(SearchDirections(MakeRadonLevel(v, *levels.coarse_grid, options_.max_depth_fraction,
-                                                                 nullptr, scene.coarse),
-                                                  FibonacciHemisphere(std::max(16, options_.coarse_directions / 8)),
-                                                  nullptr)
-                                     .scores,
-                                 scene)
-                 : SetScoreStats(b.scores, scene);
+        previous
+            ? SetScoreStats(
+                  SearchDirections(
+                      MakeRadonLevel(v, *levels.coarse_grid, options_.max_depth_fraction, nullptr,
+                                     scene.coarse),
+                      FibonacciHemisphere(std::max(16, options_.coarse_directions / 8)), nullptr)
+                      .scores,
+                  scene)
+            : SetScoreStats(b.scores, scene);
     scene.valid = have_scores;
   }
   out.baseline = scene;
@@ -199,7 +212,8 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
       if (order.empty()) {
         order.resize(b.scores.size());
         std::iota(order.begin(), order.end(), std::size_t{0});
-        std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return b.scores[x] > b.scores[y]; });
+        std::sort(order.begin(), order.end(),
+                  [&](std::size_t x, std::size_t y) { return b.scores[x] > b.scores[y]; });
       }
       while (next < order.size() && b.scores[order[next]] >= 0.5 * b.peak.score &&
              std::any_of(tried.begin(), tried.end(), [&](const Eigen::Vector3d& t) {
@@ -219,9 +233,11 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
   return best;
 }
 
-CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const RadonLevel& L1, const RadonLevel& L2,
-                                              const Eigen::Vector3d& direction, const RadonPeak& coarse_peak,
-                                              const FineSearch& fine, const RadonWindow* window, double bg,
+CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const RadonLevel& L1,
+                                              const RadonLevel& L2,
+                                              const Eigen::Vector3d& direction,
+                                              const RadonPeak& coarse_peak, const FineSearch& fine,
+                                              const RadonWindow* window, double bg,
                                               const SceneBaseline& scene) const {
   CatheterDetection out;
   out.baseline = scene;
@@ -232,7 +248,8 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
   f.direction = direction;
   f.peak = coarse_peak;
   for (int pass = 0; pass < fine.passes; ++pass) {
-    RadonSearchResult g = SearchDirections(L2, DirectionCone(f.direction, cone, options_.fine_steps), &near);
+    RadonSearchResult g =
+        SearchDirections(L2, DirectionCone(f.direction, cone, options_.fine_steps), &near);
     if (g.peak.score > 0) {
       f = g;
       near.line = PeakLine(L2, f.direction, f.peak);
@@ -269,8 +286,9 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
   out.target_found = target.found;
   out.target_mm = target.target_mm;
 
-  out.tubularity = Tubularity(v, out.axis, out.axis.Parameter(out.tip_mm) - out.line_length_mm,
-                              out.axis.Parameter(out.tip_mm), options_.edge.dynamic_range_db, options_.tube);
+  out.tubularity =
+      Tubularity(v, out.axis, out.axis.Parameter(out.tip_mm) - out.line_length_mm,
+                 out.axis.Parameter(out.tip_mm), options_.edge.dynamic_range_db, options_.tube);
 
   // Confidence: Radon peak contrast (robust z among the directions' best lines), length, and
   // the line's tube shape (a line within a surface is not a catheter). The peak's contrast
@@ -278,10 +296,12 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
   // best lines are bright too (a catheter beside tissue has z 9–13 where one in water has
   // 20–35), while the tube check is what tells a catheter from a line within tissue.
   const double c_peak = 1.0 - std::exp(-std::max(0.0, z_score - 5.0) / 4.0);
-  const double c_len = std::clamp(out.line_length_mm / (2.0 * std::max(1e-9, options_.min_line_length_mm)), 0.0, 1.0);
+  const double c_len = std::clamp(
+      out.line_length_mm / (2.0 * std::max(1e-9, options_.min_line_length_mm)), 0.0, 1.0);
   const double c_tube = std::clamp((out.tubularity - 0.2) / 0.5, 0.0, 1.0);
   out.confidence = std::clamp(c_peak * c_len * c_tube, 0.0, 1.0);
-  out.found = out.confidence >= options_.min_confidence && out.line_length_mm >= options_.min_line_length_mm;
+  out.found = out.confidence >= options_.min_confidence &&
+              out.line_length_mm >= options_.min_line_length_mm;
   out.peak_z = z_score;
   return out;
 }

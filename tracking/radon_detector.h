@@ -1,34 +1,15 @@
-// Catheter-axis detector for 3D ultrasound volumes: a coarse-to-fine 3D Radon transform.
+// Catheter-axis detector for 3D ultrasound volumes, a coarse-to-fine 3D Radon transform: the
+// catheter axis, the guidewire tip and the target (the first tissue surface ahead of the tip).
 //
-// For a direction d, projecting every voxel onto the plane ⟂ d and accumulating its
-// intensity in a 2D histogram gives the line integrals of the volume along all lines
-// parallel to d: the Radon (X-ray) transform for d. A straight bright catheter is a sharp
-// peak of that histogram for d = its axis. The detector:
-//   1. max-pools the volume ×2 (and that ×2 again), keeps the cells clearly above the
-//      median (background) level (faint speckle adds little and costs much);
-//   2. ×4 level: scores a Fibonacci hemisphere of directions (TBB-parallel; every other
-//      direction, then the rest near the best of those), each by its best histogram peak's
-//      contrast against the ring around it (a line is a point in the projection, a tissue
-//      surface seen edge-on a ridge: the ring's 2nd-highest sample is subtracted, which
-//      cancels ridges but not one-sided reverberation tails);
-//   3. refines the direction on a finer local grid at the ×2 level; among near-equal peaks
-//      of that direction (parallel lines: reverberation comets lie behind the catheter along
-//      the beam) takes the one nearest the probe apex;
-//   4. full resolution: the near-wall tube model fit of the catheter's first echoes
-//      (tracking/echo_axis_fit.h);
-//   5. tip: end of the bright run of the intensity profile along the axis, the end away
-//      from where the line enters the volume; target: the first tissue surface beyond the
-//      tip along the axis, from a fit of its echo and backscatter (tracking/axis_profile.h);
-//   6. confidence in [0, 1] from the peak's contrast against the distribution of the other
-//      directions' scores, the bright run's length and its tube shape
-//      (tracking/tube_check.h); below `min_confidence`: not found. A full search whose best
-//      line fails tries the next best directions (`max_candidates`).
-// Tracking: with a previous axis, only a cone of directions around it and an offset window
-// around it are searched, on the voxels of a cylinder around it; from a previous detection,
-// its scene statistics (background levels, the confidence's baseline) are reused, so the
-// rest of the volume is not read. A full search follows when that gives a low confidence.
-//
-// Units: mm, rad, in the volume's image (physical) frame (imaging/volume.h).
+// In: a Volume (imaging/volume.h); for tracking, the previous axis or detection. Out: a
+// CatheterDetection in the volume's image frame (mm, rad): axis (direction to the tip), tip_mm,
+// target_mm, confidence in [0, 1]; found only at confidence ≥ min_confidence. Tracking searches
+// a cone and an offset window around the previous axis, reusing its SceneBaseline, and falls
+// back to a full search on low confidence; Track keeps the last found detection (Reset).
+// Errors: Detect throws std::invalid_argument for a volume too anisotropic to judge
+// (max_spacing_ratio); Validate throws it naming a bad option.
+// Notation: docs/architecture.md#units-frames-and-naming
+// Details: docs/detector.md#algorithm
 #pragma once
 
 #include <Eigen/Core>
@@ -44,23 +25,23 @@
 namespace echoservo::tracking {
 
 struct RadonDetectorOptions {
-  int coarse_factor = 4;              // first max-pooling factor (voxels), ≥ 2
-  int coarse_directions = 2000;       // Fibonacci hemisphere size at the coarse level
-  double fine_cone_rad = 0.08;        // refinement cone half-angle around the coarse best
-  int fine_steps = 9;                 // refinement grid, fine_steps² directions per pass
+  int coarse_factor = 4;         // first max-pooling factor (voxels), ≥ 2
+  int coarse_directions = 2000;  // Fibonacci hemisphere size at the coarse level
+  double fine_cone_rad = 0.08;   // refinement cone half-angle around the coarse best
+  int fine_steps = 9;            // refinement grid, fine_steps² directions per pass
   // Full-resolution axis fit (tracking/echo_axis_fit.h): fit cylinder, first-echo look-back
   // along the beam, and the catheter's outer diameters (the echo comes from the near wall).
   EchoAxisFitOptions fit;
-  TubeCheckOptions tube;              // tube vs surface test (tracking/tube_check.h)
-  EdgeOptions edge;                   // tip and target edges (tracking/axis_profile.h)
-  double min_line_length_mm = 6.0;    // shorter bright runs are not a catheter
-  double min_confidence = 0.5;        // below: not found
-  double tracking_cone_rad = 0.17;    // tracking search cone half-angle (~10°)
-  double tracking_window_mm = 6.0;    // tracking offset window around the previous axis
+  TubeCheckOptions tube;            // tube vs surface test (tracking/tube_check.h)
+  EdgeOptions edge;                 // tip and target edges (tracking/axis_profile.h)
+  double min_line_length_mm = 6.0;  // shorter bright runs are not a catheter
+  double min_confidence = 0.5;      // below: not found
+  double tracking_cone_rad = 0.17;  // tracking search cone half-angle (~10°)
+  double tracking_window_mm = 6.0;  // tracking offset window around the previous axis
   // Lines whose point nearest the volume centre lies deeper (image z) than this fraction of
   // the volume's depth are ignored: far-field walls (tank floor) make bright strips there.
   double max_depth_fraction = 1.0;
-  double max_spacing_ratio = 4.0;     // larger max/min spacing ratio: std::invalid_argument
+  double max_spacing_ratio = 4.0;  // larger max/min spacing ratio: std::invalid_argument
   // The Radon levels keep only the cells brighter than their background by this fraction of
   // the range up to their bright end (tracking/radon_transform.h MakeRadonLevel; 0: every
   // cell above the background): faint speckle is most of a tissue volume's cells, costs a
@@ -91,16 +72,16 @@ struct SceneBaseline {
 
 struct CatheterDetection {
   bool found = false;
-  Line3 axis;                                        // direction points to the tip
+  Line3 axis;  // direction points to the tip
   Eigen::Vector3d tip_mm = Eigen::Vector3d::Zero();
   bool target_found = false;
   Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();
-  double confidence = 0.0;                           // [0, 1]
-  double line_length_mm = 0.0;                       // bright run length along the axis
-  bool tracked = false;                              // result of the tracking search
-  double tubularity = 0.0;  // tracking/tube_check.h: ≈ 1 tube, ≈ 0 line within a surface
-  double peak_z = 0.0;  // robust z-score of the Radon peak among its histogram's lines
-  SceneBaseline baseline;  // the statistics this result used (valid once the search ran)
+  double confidence = 0.0;      // [0, 1]
+  double line_length_mm = 0.0;  // bright run length along the axis
+  bool tracked = false;         // result of the tracking search
+  double tubularity = 0.0;      // tracking/tube_check.h: ≈ 1 tube, ≈ 0 line within a surface
+  double peak_z = 0.0;          // robust z-score of the Radon peak among its histogram's lines
+  SceneBaseline baseline;       // the statistics this result used (valid once the search ran)
 };
 
 class RadonDetector {
@@ -128,7 +109,8 @@ class RadonDetector {
   const RadonDetectorOptions& options() const { return options_; }
 
  private:
-  CatheterDetection Run(const imaging::Volume& volume, const Line3* previous, const SceneBaseline* scene) const;
+  CatheterDetection Run(const imaging::Volume& volume, const Line3* previous,
+                        const SceneBaseline* scene) const;
   // The fine level's direction refinement: `passes` grids of fine_steps² directions, the
   // first within cone_rad, each next one (fine_steps − 1)/2 times narrower.
   struct FineSearch {
@@ -137,9 +119,10 @@ class RadonDetector {
   };
   // Refines one coarse line (direction and peak) and judges it: axis fit, tip, target, tube
   // check, confidence.
-  CatheterDetection EvaluateLine(const imaging::Volume& volume, const RadonLevel& coarse, const RadonLevel& fine_level,
-                                 const Eigen::Vector3d& direction, const RadonPeak& coarse_peak,
-                                 const FineSearch& fine, const RadonWindow* window, double background,
+  CatheterDetection EvaluateLine(const imaging::Volume& volume, const RadonLevel& coarse,
+                                 const RadonLevel& fine_level, const Eigen::Vector3d& direction,
+                                 const RadonPeak& coarse_peak, const FineSearch& fine,
+                                 const RadonWindow* window, double background,
                                  const SceneBaseline& scene) const;
 
   RadonDetectorOptions options_;

@@ -75,15 +75,17 @@ void MaxInto(std::uint8_t* __restrict acc, const std::uint8_t* __restrict in, st
 // of each run of f along x. `row` is scratch of d.x bytes. Raw pointers: a store through a
 // uint8_t lvalue may alias anything, so through a vector the compiler would reload its data
 // pointer for every byte.
-void PoolRow(const std::uint8_t* src, const Eigen::Vector3i& d, int f, int jo, int ko, int io0, int io1,
-             std::uint8_t* row, std::uint8_t* out) {
+void PoolRow(const std::uint8_t* src, const Eigen::Vector3i& d, int f, int jo, int ko, int io0,
+             int io1, std::uint8_t* row, std::uint8_t* out) {
   const std::size_t sx = static_cast<std::size_t>(d.x()), sy = static_cast<std::size_t>(d.y());
   const std::size_t x0 = static_cast<std::size_t>(io0) * static_cast<std::size_t>(f);
-  const std::size_t x1 = std::min(sx, static_cast<std::size_t>(io1 + 1) * static_cast<std::size_t>(f));
+  const std::size_t x1 =
+      std::min(sx, static_cast<std::size_t>(io1 + 1) * static_cast<std::size_t>(f));
   bool first = true;
   for (int k = ko * f; k < std::min(d.z(), ko * f + f); ++k)
     for (int j = jo * f; j < std::min(d.y(), jo * f + f); ++j) {
-      const std::uint8_t* in = src + sx * (static_cast<std::size_t>(j) + sy * static_cast<std::size_t>(k)) + x0;
+      const std::uint8_t* in =
+          src + sx * (static_cast<std::size_t>(j) + sy * static_cast<std::size_t>(k)) + x0;
       if (first) {
         std::memcpy(row + x0, in, x1 - x0);
         first = false;
@@ -94,7 +96,8 @@ void PoolRow(const std::uint8_t* src, const Eigen::Vector3i& d, int f, int jo, i
   if (f == 2) {  // the common case, as a loop that vectorises
     const int pairs = std::min(io1, static_cast<int>(sx / 2) - 1);  // cells with both voxels
     for (int io = io0; io <= pairs; ++io) out[io] = std::max(row[2 * io], row[2 * io + 1]);
-    for (int io = std::max(io0, pairs + 1); io <= io1; ++io) out[io] = row[2 * io];  // clipped last cell
+    for (int io = std::max(io0, pairs + 1); io <= io1; ++io)
+      out[io] = row[2 * io];  // clipped last cell
     return;
   }
   for (int io = io0; io <= io1; ++io) {
@@ -112,7 +115,8 @@ PooledGrid Pool(const std::uint8_t* src, const Eigen::Vector3i& d, int f, int ou
   PooledGrid g;
   g.factor = out_factor;
   g.dims = Eigen::Vector3i((d.x() + f - 1) / f, (d.y() + f - 1) / f, (d.z() + f - 1) / f);
-  const std::size_t nx = static_cast<std::size_t>(g.dims.x()), ny = static_cast<std::size_t>(g.dims.y());
+  const std::size_t nx = static_cast<std::size_t>(g.dims.x()),
+                    ny = static_cast<std::size_t>(g.dims.y());
   g.values.assign(nx * ny * static_cast<std::size_t>(g.dims.z()), 0);
   std::vector<Histogram256> slice_hist(static_cast<std::size_t>(g.dims.z()), Histogram256{});
   tbb::parallel_for(tbb::blocked_range<int>(0, g.dims.z()), [&](const tbb::blocked_range<int>& r) {
@@ -120,8 +124,10 @@ PooledGrid Pool(const std::uint8_t* src, const Eigen::Vector3i& d, int f, int ou
     for (int ko = r.begin(); ko != r.end(); ++ko) {
       std::uint8_t* out_slice = g.values.data() + nx * ny * static_cast<std::size_t>(ko);
       for (int jo = 0; jo < g.dims.y(); ++jo)
-        PoolRow(src, d, f, jo, ko, 0, g.dims.x() - 1, row.data(), out_slice + nx * static_cast<std::size_t>(jo));
-      AddToHistogram(std::span<const std::uint8_t>(out_slice, nx * ny), slice_hist[static_cast<std::size_t>(ko)]);
+        PoolRow(src, d, f, jo, ko, 0, g.dims.x() - 1, row.data(),
+                out_slice + nx * static_cast<std::size_t>(jo));
+      AddToHistogram(std::span<const std::uint8_t>(out_slice, nx * ny),
+                     slice_hist[static_cast<std::size_t>(ko)]);
     }
   });
   for (const auto& h : slice_hist)
@@ -134,8 +140,8 @@ PooledGrid Pool(const std::uint8_t* src, const Eigen::Vector3i& d, int f, int ou
 // |c + i a + j b|² with a, b the cell steps and c cell (0, 0) of the slice, all ⟂ the line.
 class SliceRows {
  public:
-  SliceRows(const Eigen::Vector3d& corner, const Eigen::Vector3d& di, const Eigen::Vector3d& dj, const RadonWindow* roi,
-            double radius_mm, const Eigen::Vector2i& dims)
+  SliceRows(const Eigen::Vector3d& corner, const Eigen::Vector3d& di, const Eigen::Vector3d& dj,
+            const RadonWindow* roi, double radius_mm, const Eigen::Vector2i& dims)
       : dims_(dims), all_(roi == nullptr) {
     if (all_) return;
     const Eigen::Vector3d e = roi->line.direction;
@@ -159,7 +165,8 @@ class SliceRows {
       return true;
     }
     if (aa_ <= 1e-12) return QuadraticRange(bb_, bc_, cc_ - r2_, dims_.y(), j0, j1);
-    return QuadraticRange(bb_ - ab_ * ab_ / aa_, bc_ - ac_ * ab_ / aa_, cc_ - ac_ * ac_ / aa_ - r2_, dims_.y(), j0, j1);
+    return QuadraticRange(bb_ - ab_ * ab_ / aa_, bc_ - ac_ * ab_ / aa_, cc_ - ac_ * ac_ / aa_ - r2_,
+                          dims_.y(), j0, j1);
   }
 
   // [i0, i1]: the cells of row j that may be such cells.
@@ -169,7 +176,8 @@ class SliceRows {
       i1 = dims_.x() - 1;
       return true;
     }
-    return QuadraticRange(aa_, ac_ + j * ab_, cc_ + 2 * j * bc_ + j * j * bb_ - r2_, dims_.x(), i0, i1);
+    return QuadraticRange(aa_, ac_ + j * ab_, cc_ + 2 * j * bc_ + j * j * bb_ - r2_, dims_.x(), i0,
+                          i1);
   }
 
  private:
@@ -183,9 +191,13 @@ class SliceRows {
 class GridGeometry {
  public:
   GridGeometry(const imaging::Volume& v, int factor, const Eigen::Vector3i& dims)
-      : f_(factor), dims_(dims), volume_dims_(v.dims()), origin_(v.origin_mm()),
+      : f_(factor),
+        dims_(dims),
+        volume_dims_(v.dims()),
+        origin_(v.origin_mm()),
         // As Volume::IndexToPhysical (the same matrix and sum), inlined.
-        to_physical_(v.direction() * v.spacing_mm().asDiagonal()), di_(Centre(1, 0, 0) - Centre(0, 0, 0)),
+        to_physical_(v.direction() * v.spacing_mm().asDiagonal()),
+        di_(Centre(1, 0, 0) - Centre(0, 0, 0)),
         dj_(Centre(0, 1, 0) - Centre(0, 0, 0)),
         slack_mm_(0.5 * factor * v.spacing_mm().maxCoeff() + 1e-6) {}
 
@@ -219,12 +231,14 @@ class GridGeometry {
 void SliceCells(const imaging::Volume& v, const PooledGrid& g, int k, double bg, double min_value,
                 const RadonWindow* roi, std::vector<RadonCell>& out) {
   const GridGeometry geo(v, g.factor, g.dims);
-  const std::size_t nx = static_cast<std::size_t>(g.dims.x()), ny = static_cast<std::size_t>(g.dims.y());
+  const std::size_t nx = static_cast<std::size_t>(g.dims.x()),
+                    ny = static_cast<std::size_t>(g.dims.y());
   const SliceRows rows = geo.Slice(k, roi);
   int j0 = 0, j1 = 0;
   if (!rows.Rows(j0, j1)) return;
   for (int j = j0; j <= j1; ++j) {
-    const std::uint8_t* row = g.values.data() + nx * (static_cast<std::size_t>(j) + ny * static_cast<std::size_t>(k));
+    const std::uint8_t* row =
+        g.values.data() + nx * (static_cast<std::size_t>(j) + ny * static_cast<std::size_t>(k));
     int i0 = 0, i1 = 0;
     if (!rows.Row(j, i0, i1)) continue;
     for (int i = i0; i <= i1; ++i) {
@@ -246,7 +260,8 @@ struct CellColumns {
   std::vector<float> x, y, z, w;
   Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();  // bounding box
 
-  explicit CellColumns(const RadonLevel& L) : CellColumns(L, [](const RadonCell&) { return true; }) {}
+  explicit CellColumns(const RadonLevel& L)
+      : CellColumns(L, [](const RadonCell&) { return true; }) {}
 
   // The cells for which keep(cell) holds.
   template <typename Keep>
@@ -297,9 +312,9 @@ struct ProjectionPlane {
 // Lower-left bins (truncated projections) and bilinear weights of cells [0, m) (columns x,
 // y, z, w); `box` grows to hold the bins. No branches and no scattered stores: the loop
 // vectorises.
-void ProjectBlock(const ProjectionPlane& p, const float* cx, const float* cy, const float* cz, const float* cw,
-                  std::size_t m, std::int32_t* bx, std::int32_t* by, float* w00, float* w10, float* w01, float* w11,
-                  BinBox& box) {
+void ProjectBlock(const ProjectionPlane& p, const float* cx, const float* cy, const float* cz,
+                  const float* cw, std::size_t m, std::int32_t* bx, std::int32_t* by, float* w00,
+                  float* w10, float* w01, float* w11, BinBox& box) {
   // Locals: the stores through float pointers could otherwise alias `p`, forcing reloads.
   const float ux = p.ux, uy = p.uy, uz = p.uz, wx = p.wx, wy = p.wy, wz = p.wz, off = p.off;
   std::int32_t x0 = box.x0, y0 = box.y0, x1 = box.x1, y1 = box.y1;
@@ -340,14 +355,17 @@ std::vector<Quad>& QuadScratch(std::size_t size) {
 class DirectionHistogram {
  public:
   DirectionHistogram(const RadonLevel& L, const Eigen::Vector3d& d)
-      : L_(L), n_(static_cast<int>(std::ceil(2 * L.half_extent_mm / L.bin_mm)) + 1), off_(0.5 * (n_ - 1)),
+      : L_(L),
+        n_(static_cast<int>(std::ceil(2 * L.half_extent_mm / L.bin_mm)) + 1),
+        off_(0.5 * (n_ - 1)),
         H_(Scratch(static_cast<std::size_t>(n_) * n_)) {
     PlaneBasis(d, u_, w_);
   }
   ~DirectionHistogram() {
     if (touched_.Empty()) return;
     for (int y = touched_.y0; y <= touched_.y1; ++y)
-      std::fill_n(&H_[static_cast<std::size_t>(y) * n_ + touched_.x0], touched_.x1 - touched_.x0 + 1, 0.0f);
+      std::fill_n(&H_[static_cast<std::size_t>(y) * n_ + touched_.x0],
+                  touched_.x1 - touched_.x0 + 1, 0.0f);
   }
   DirectionHistogram(const DirectionHistogram&) = delete;
   DirectionHistogram& operator=(const DirectionHistogram&) = delete;
@@ -365,16 +383,20 @@ class DirectionHistogram {
   void Splat(const CellColumns& cells, const BinBox* needed) {
     // Lower-left bins of footprints inside the histogram and meeting `needed`.
     BinBox allow{0, 0, n_ - 2, n_ - 2};
-    if (needed) allow = Intersect(allow, BinBox{needed->x0 - 1, needed->y0 - 1, needed->x1, needed->y1});
+    if (needed)
+      allow = Intersect(allow, BinBox{needed->x0 - 1, needed->y0 - 1, needed->x1, needed->y1});
     if (allow.Empty() || cells.size() == 0) return;
     const BinBox box = ProjectedBox(cells);
-    const bool check = needed || box.x0 < allow.x0 || box.y0 < allow.y0 || box.x1 > allow.x1 || box.y1 > allow.y1;
-    const unsigned wx = static_cast<unsigned>(allow.x1 - allow.x0), wy = static_cast<unsigned>(allow.y1 - allow.y0);
+    const bool check =
+        needed || box.x0 < allow.x0 || box.y0 < allow.y0 || box.x1 > allow.x1 || box.y1 > allow.y1;
+    const unsigned wx = static_cast<unsigned>(allow.x1 - allow.x0),
+                   wy = static_cast<unsigned>(allow.y1 - allow.y0);
     const int stride = n_ + 1;  // quads: one zero row and column before the histogram's
     std::vector<Quad>& G = QuadScratch(static_cast<std::size_t>(stride) * stride);
     Quad* Q = G.data() + stride + 1;
-    const ProjectionPlane plane{static_cast<float>(u_.x()), static_cast<float>(u_.y()), static_cast<float>(u_.z()),
-                                static_cast<float>(w_.x()), static_cast<float>(w_.y()), static_cast<float>(w_.z()),
+    const ProjectionPlane plane{static_cast<float>(u_.x()), static_cast<float>(u_.y()),
+                                static_cast<float>(u_.z()), static_cast<float>(w_.x()),
+                                static_cast<float>(w_.y()), static_cast<float>(w_.z()),
                                 static_cast<float>(off_)};
     constexpr std::size_t kBlock = 256;
     alignas(16) std::int32_t bx[kBlock], by[kBlock];
@@ -382,10 +404,11 @@ class DirectionHistogram {
     BinBox t{n_, n_, -1, -1};
     for (std::size_t b0 = 0; b0 < cells.size(); b0 += kBlock) {
       const std::size_t m = std::min(kBlock, cells.size() - b0);
-      ProjectBlock(plane, cells.x.data() + b0, cells.y.data() + b0, cells.z.data() + b0, cells.w.data() + b0, m,
-                   bx, by, w00, w10, w01, w11, t);
+      ProjectBlock(plane, cells.x.data() + b0, cells.y.data() + b0, cells.z.data() + b0,
+                   cells.w.data() + b0, m, bx, by, w00, w10, w01, w11, t);
       for (std::size_t i = 0; i < m; ++i) {
-        if (check && ((static_cast<unsigned>(bx[i] - allow.x0) > wx) | (static_cast<unsigned>(by[i] - allow.y0) > wy)))
+        if (check && ((static_cast<unsigned>(bx[i] - allow.x0) > wx) |
+                      (static_cast<unsigned>(by[i] - allow.y0) > wy)))
           continue;
         Quad& q = Q[by[i] * stride + bx[i]];
         q.v[0] += w00[i];
@@ -403,9 +426,11 @@ class DirectionHistogram {
       float* h = &H_[static_cast<std::size_t>(y) * n_];
       const Quad* q = Q + static_cast<std::ptrdiff_t>(y) * stride;
       const Quad* qd = q - stride;
-      for (int x = t.x0; x <= t.x1 + 1; ++x) h[x] = (q[x].v[0] + q[x - 1].v[1]) + (qd[x].v[2] + qd[x - 1].v[3]);
+      for (int x = t.x0; x <= t.x1 + 1; ++x)
+        h[x] = (q[x].v[0] + q[x - 1].v[1]) + (qd[x].v[2] + qd[x - 1].v[3]);
     }
-    for (int y = t.y0; y <= t.y1; ++y) std::fill_n(Q + static_cast<std::ptrdiff_t>(y) * stride + t.x0, t.x1 - t.x0 + 1, Quad{});
+    for (int y = t.y0; y <= t.y1; ++y)
+      std::fill_n(Q + static_cast<std::ptrdiff_t>(y) * stride + t.x0, t.x1 - t.x0 + 1, Quad{});
     touched_ = BinBox{t.x0, t.y0, t.x1 + 1, t.y1 + 1};
   }
 
@@ -415,15 +440,20 @@ class DirectionHistogram {
   BinBox ProjectedBox(const CellColumns& cells) const {
     double x0 = std::numeric_limits<double>::infinity(), y0 = x0, x1 = -x0, y1 = -x0;
     for (int corner = 0; corner < 8; ++corner) {
-      const Eigen::Vector3d c((corner & 1) ? cells.hi.x() : cells.lo.x(), (corner & 2) ? cells.hi.y() : cells.lo.y(),
+      const Eigen::Vector3d c((corner & 1) ? cells.hi.x() : cells.lo.x(),
+                              (corner & 2) ? cells.hi.y() : cells.lo.y(),
                               (corner & 4) ? cells.hi.z() : cells.lo.z());
       x0 = std::min(x0, c.dot(u_));
       x1 = std::max(x1, c.dot(u_));
       y0 = std::min(y0, c.dot(w_));
       y1 = std::max(y1, c.dot(w_));
     }
-    auto lo = [&](double v) { return static_cast<int>(std::clamp(std::floor(v + off_) - 1, -2.0, n_ + 2.0)); };
-    auto hi = [&](double v) { return static_cast<int>(std::clamp(std::floor(v + off_) + 1, -2.0, n_ + 2.0)); };
+    auto lo = [&](double v) {
+      return static_cast<int>(std::clamp(std::floor(v + off_) - 1, -2.0, n_ + 2.0));
+    };
+    auto hi = [&](double v) {
+      return static_cast<int>(std::clamp(std::floor(v + off_) + 1, -2.0, n_ + 2.0));
+    };
     return BinBox{lo(x0), lo(y0), hi(x1), hi(y1)};
   }
 
@@ -449,7 +479,8 @@ class DirectionHistogram {
   }
 
   static BinBox Intersect(const BinBox& a, const BinBox& b) {
-    return BinBox{std::max(a.x0, b.x0), std::max(a.y0, b.y0), std::min(a.x1, b.x1), std::min(a.y1, b.y1)};
+    return BinBox{std::max(a.x0, b.x0), std::max(a.y0, b.y0), std::min(a.x1, b.x1),
+                  std::min(a.y1, b.y1)};
   }
 
   // The peak at bin (x, y) when it is a local maximum (no 8-neighbour higher) with a
@@ -477,9 +508,12 @@ class DirectionHistogram {
   // Parabolic sub-bin peak position.
   void Refine(int x, int y, RadonPeak& p) const {
     const double v = at(x, y);
-    const double dxd = at(x - 1, y) - 2 * v + at(x + 1, y), dyd = at(x, y - 1) - 2 * v + at(x, y + 1);
-    const double sx = dxd < 0 ? std::clamp(0.5 * (at(x - 1, y) - at(x + 1, y)) / dxd, -0.5, 0.5) : 0.0;
-    const double sy = dyd < 0 ? std::clamp(0.5 * (at(x, y - 1) - at(x, y + 1)) / dyd, -0.5, 0.5) : 0.0;
+    const double dxd = at(x - 1, y) - 2 * v + at(x + 1, y),
+                 dyd = at(x, y - 1) - 2 * v + at(x, y + 1);
+    const double sx =
+        dxd < 0 ? std::clamp(0.5 * (at(x - 1, y) - at(x + 1, y)) / dxd, -0.5, 0.5) : 0.0;
+    const double sy =
+        dyd < 0 ? std::clamp(0.5 * (at(x, y - 1) - at(x, y + 1)) / dyd, -0.5, 0.5) : 0.0;
     p.a_mm = (x + sx - off_) * L_.bin_mm;
     p.c_mm = (y + sy - off_) * L_.bin_mm;
   }
@@ -532,7 +566,9 @@ class LocalMaxima {
         f[i] = (v[i] > 0.0f) & (v[i] >= m);
       }
       for (std::size_t i = 0; i < padded; i += 8) {
-        if ((f[i] | f[i + 1] | f[i + 2] | f[i + 3] | f[i + 4] | f[i + 5] | f[i + 6] | f[i + 7]) == 0) continue;
+        if ((f[i] | f[i + 1] | f[i + 2] | f[i + 3] | f[i + 4] | f[i + 5] | f[i + 6] | f[i + 7]) ==
+            0)
+          continue;
         for (std::size_t j = i; j < i + 8; ++j)
           if (f[j]) found_.push_back({v[j], box.x0 + static_cast<int>(j), y});
       }
@@ -545,7 +581,8 @@ class LocalMaxima {
  private:
   static void RowMax3(const DirectionHistogram& H, int x0, int y, std::vector<float>& out) {
     const float* r = H.row(y) + x0 - 1;  // r[i] is bin x0 + i − 1 (the caller keeps x0 ≥ 1)
-    for (std::size_t i = 0; i < out.size(); ++i) out[i] = std::max(std::max(r[i], r[i + 1]), r[i + 2]);
+    for (std::size_t i = 0; i < out.size(); ++i)
+      out[i] = std::max(std::max(r[i], r[i + 1]), r[i + 2]);
   }
   std::array<std::vector<float>, 3> rows_;
   std::vector<std::int32_t> flags_;
@@ -570,12 +607,14 @@ RadonPeak BestPeak(const RadonLevel& L, const CellColumns& cells, const Eigen::V
   thread_local LocalMaxima finder;
   const std::vector<LocalMaximum>& maxima = finder.Find(H, c);
   if (maxima.empty()) return best;
-  const auto top = std::max_element(maxima.begin(), maxima.end(),
-                                    [](const LocalMaximum& a, const LocalMaximum& b) { return a.value < b.value; });
+  const auto top = std::max_element(
+      maxima.begin(), maxima.end(),
+      [](const LocalMaximum& a, const LocalMaximum& b) { return a.value < b.value; });
   double best_score = 0;
   auto consider = [&](const LocalMaximum& m) {
     RadonPeak p;
-    if (m.value > best_score && H.PeakAt(m.x, m.y, p) && p.score > best_score && H.Admissible(p, window)) {
+    if (m.value > best_score && H.PeakAt(m.x, m.y, p) && p.score > best_score &&
+        H.Admissible(p, window)) {
       best = p;
       best_score = p.score;
     }
@@ -593,7 +632,8 @@ RadonPeak BestPeak(const RadonLevel& L, const CellColumns& cells, const Eigen::V
 // its value, neighbours and ring within 2√2 bins of it, and a cell's splat within √2 bins of
 // the cell: cells farther than radius + 5 bins for the largest θ add nothing to the bins
 // that decide the result, so dropping them leaves it unchanged.
-CellColumns WindowCells(const RadonLevel& L, std::span<const Eigen::Vector3d> dirs, const RadonWindow& window) {
+CellColumns WindowCells(const RadonLevel& L, std::span<const Eigen::Vector3d> dirs,
+                        const RadonWindow& window) {
   const Eigen::Vector3d d0 = window.line.direction.normalized();
   double cos_min = 1.0;
   for (const auto& d : dirs) cos_min = std::min(cos_min, std::abs(d.normalized().dot(d0)));
@@ -659,7 +699,8 @@ PooledGrid MaxPool(const imaging::Volume& v, int f, const RadonWindow& roi) {
   PooledGrid g;
   g.factor = f;
   g.dims = Eigen::Vector3i((d.x() + f - 1) / f, (d.y() + f - 1) / f, (d.z() + f - 1) / f);
-  const std::size_t nx = static_cast<std::size_t>(g.dims.x()), ny = static_cast<std::size_t>(g.dims.y());
+  const std::size_t nx = static_cast<std::size_t>(g.dims.x()),
+                    ny = static_cast<std::size_t>(g.dims.y());
   g.values.assign(nx * ny * static_cast<std::size_t>(g.dims.z()), 0);
   const GridGeometry geo(v, f, g.dims);
   tbb::parallel_for(tbb::blocked_range<int>(0, g.dims.z()), [&](const tbb::blocked_range<int>& r) {
@@ -672,7 +713,8 @@ PooledGrid MaxPool(const imaging::Volume& v, int f, const RadonWindow& roi) {
         int io0 = 0, io1 = 0;
         if (!rows.Row(jo, io0, io1)) continue;
         PoolRow(v.voxels().data(), d, f, jo, ko, io0, io1, row.data(),
-                g.values.data() + nx * (static_cast<std::size_t>(jo) + ny * static_cast<std::size_t>(ko)));
+                g.values.data() +
+                    nx * (static_cast<std::size_t>(jo) + ny * static_cast<std::size_t>(ko)));
       }
     }
   });
@@ -744,8 +786,10 @@ std::vector<RadonPeak> RadonPeaks(const RadonLevel& L, const Eigen::Vector3d& d,
       RadonPeak p;
       if (H.PeakAt(x, y, p) && H.Admissible(p, window)) peaks.push_back(p);
     }
-  std::sort(peaks.begin(), peaks.end(), [](const RadonPeak& a, const RadonPeak& b) { return a.score > b.score; });
-  if (want_z && !peaks.empty() && all.size() > 8) peaks.front().z = RobustZ(all, peaks.front().score);
+  std::sort(peaks.begin(), peaks.end(),
+            [](const RadonPeak& a, const RadonPeak& b) { return a.score > b.score; });
+  if (want_z && !peaks.empty() && all.size() > 8)
+    peaks.front().z = RobustZ(all, peaks.front().score);
   return peaks;
 }
 
@@ -783,7 +827,8 @@ RadonSearchResult SearchDirections(const RadonLevel& L, std::span<const Eigen::V
                                    const RadonWindow* window) {
   std::vector<RadonPeak> best(dirs.size());
   const CellColumns cells = window ? WindowCells(L, dirs, *window) : CellColumns(L);
-  tbb::parallel_for(std::size_t{0}, dirs.size(), [&](std::size_t i) { best[i] = BestPeak(L, cells, dirs[i], window); });
+  tbb::parallel_for(std::size_t{0}, dirs.size(),
+                    [&](std::size_t i) { best[i] = BestPeak(L, cells, dirs[i], window); });
   RadonSearchResult b;
   b.scores.reserve(dirs.size());
   b.directions.assign(dirs.begin(), dirs.end());
@@ -798,8 +843,10 @@ RadonSearchResult SearchDirections(const RadonLevel& L, std::span<const Eigen::V
   return b;
 }
 
-RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& L, std::span<const Eigen::Vector3d> dirs,
-                                               const CoarseToFineOptions& o, const RadonWindow* window) {
+RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& L,
+                                               std::span<const Eigen::Vector3d> dirs,
+                                               const CoarseToFineOptions& o,
+                                               const RadonWindow* window) {
   const std::size_t stride = static_cast<std::size_t>(std::max(1, o.stride));
   // Stage 1: every stride-th direction.
   std::vector<Eigen::Vector3d> first;
@@ -810,7 +857,9 @@ RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& L, std::span<co
   std::iota(order.begin(), order.end(), std::size_t{0});
   const std::size_t k = std::min(order.size(), static_cast<std::size_t>(std::max(0, o.top_k)));
   std::partial_sort(order.begin(), order.begin() + static_cast<long>(k), order.end(),
-                    [&](std::size_t a, std::size_t c) { return b.scores[a] > b.scores[c] || (b.scores[a] == b.scores[c] && a < c); });
+                    [&](std::size_t a, std::size_t c) {
+                      return b.scores[a] > b.scores[c] || (b.scores[a] == b.scores[c] && a < c);
+                    });
   const double cos_near = std::cos(o.neighbour_rad);
   std::vector<Eigen::Vector3d> second;
   for (std::size_t i = 0; i < dirs.size(); ++i) {

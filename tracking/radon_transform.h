@@ -1,18 +1,12 @@
 // The 3D Radon (line-integral) transform of a sparse intensity field, and the search for its
 // strongest line over a set of directions: the search stage of the catheter detector.
 //
-// A volume is reduced to a level: voxels max-pooled by an integer factor, keeping the cells
-// brighter than the level's background (median of its non-zero cells) — or than a contrast
-// threshold above it — each weighted by (value − background)², at their physical positions
-// (mm, image frame). Histograms are accumulated in float (relative rounding ~1e-7, far below
-// the bins' speckle), each direction in a per-thread scratch histogram. For a direction d
-// the cells are projected onto the plane ⟂ d and splatted bilinearly into a 2D histogram
-// with bins of the level's cell size: each bin is the line integral of the weights along one
-// line parallel to d. A straight bright line parallel to d is a point peak of that
-// histogram; a surface seen edge-on is a ridge. A peak is scored by its value minus the
-// maximum of the 16-bin ring 2 bins around it, which cancels ridges and ridge ends.
-//
+// A RadonLevel is a volume max-pooled by an integer factor, its cells above the background
+// (the median non-zero cell) weighted by (value − background)². For a direction d the cells
+// are splatted into a 2D histogram ⟂ d with bins of the cell size: a line parallel to d is a
+// point peak, a surface seen edge-on a ridge; a peak scores its value minus its ring's maximum.
 // Units: mm in the volume's image frame; directions are unit vectors; angles in rad.
+// Details: docs/detector.md#algorithm (steps 1 to 3)
 #pragma once
 
 #include <Eigen/Core>
@@ -44,7 +38,7 @@ struct RadonLevel {
   Eigen::Vector3d centre_mm = Eigen::Vector3d::Zero();  // histogram origin
   double half_extent_mm = 1.0;                          // histogram half-width
   double background = 0.0;                              // median non-zero pooled value
-  double min_value = 0.0;  // the cells kept are brighter than this (≥ background)
+  double min_value = 0.0;       // the cells kept are brighter than this (≥ background)
   double max_depth_z_mm = 0.0;  // peaks whose line lies deeper (image z) are ignored
 };
 
@@ -93,21 +87,23 @@ LevelThresholds GridThresholds(const PooledGrid& grid, double min_contrast);
 // background by that fraction of the range up to the grid's bright end (GridThresholds):
 // speckle just above the median is most of a tissue volume's cells but, weighted by
 // (value − background)², a cell below 1/8 of the range weighs under 1/64 of a bright one.
-RadonLevel MakeRadonLevel(const imaging::Volume& volume, const PooledGrid& grid, double max_depth_fraction,
-                          const RadonWindow* roi = nullptr, double min_contrast = 0.0);
+RadonLevel MakeRadonLevel(const imaging::Volume& volume, const PooledGrid& grid,
+                          double max_depth_fraction, const RadonWindow* roi = nullptr,
+                          double min_contrast = 0.0);
 // The same with given thresholds (e.g. those of an earlier frame, for a grid pooled only in
 // a region of interest).
-RadonLevel MakeRadonLevel(const imaging::Volume& volume, const PooledGrid& grid, double max_depth_fraction,
-                          const RadonWindow* roi, const LevelThresholds& thresholds);
+RadonLevel MakeRadonLevel(const imaging::Volume& volume, const PooledGrid& grid,
+                          double max_depth_fraction, const RadonWindow* roi,
+                          const LevelThresholds& thresholds);
 
 // Median of the non-zero voxels of `volume` (0 when all are zero): the volume's background
 // level. Parallel (TBB); runs of zero voxels are skipped 8 at a time.
 double MedianNonZeroVoxel(const imaging::Volume& volume);
 
 struct RadonPeak {
-  double score = -1.0;      // contrast of the peak against its ring (weight units)
+  double score = -1.0;        // contrast of the peak against its ring (weight units)
   double a_mm = 0, c_mm = 0;  // offset in the plane ⟂ d, from the level centre
-  double z = 0.0;           // robust z-score among the histogram's bins (first peak only)
+  double z = 0.0;             // robust z-score among the histogram's bins (first peak only)
 };
 
 // An orthonormal basis (u, w) of the plane ⟂ d (d unit).
@@ -160,7 +156,8 @@ struct CoarseToFineOptions {
 // direction and d, so the set's best direction lies near the first stage's best ones and
 // the result is the set's best at about 1/stride of the cost. `scores` holds the first
 // stage's scores only (a uniform subsample of the set, for the statistics of line scores).
-RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& level, std::span<const Eigen::Vector3d> directions,
+RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& level,
+                                               std::span<const Eigen::Vector3d> directions,
                                                const CoarseToFineOptions& options = {},
                                                const RadonWindow* window = nullptr);
 

@@ -43,7 +43,8 @@ BrightVoxels Threshold(const imaging::Volume& v, const RansacLineDetectorOptions
   if (n == 0) return out;
   const int median = HistogramQuantile(h, n, 0.5);
   std::array<std::int64_t, 256> dev{};
-  for (int i = 1; i < 256; ++i) dev[static_cast<std::size_t>(std::abs(i - median))] += h[static_cast<std::size_t>(i)];
+  for (int i = 1; i < 256; ++i)
+    dev[static_cast<std::size_t>(std::abs(i - median))] += h[static_cast<std::size_t>(i)];
   std::int64_t acc = 0;
   int mad = 0;
   for (int i = 0; i < 256; ++i) {
@@ -53,9 +54,9 @@ BrightVoxels Threshold(const imaging::Volume& v, const RansacLineDetectorOptions
       break;
     }
   }
-  const double t = std::min<double>(
-      vmax, std::max<double>(HistogramQuantile(h, n, o.threshold_quantile),
-                             median + o.threshold_mad_k * 1.4826 * mad));
+  const double t =
+      std::min<double>(vmax, std::max<double>(HistogramQuantile(h, n, o.threshold_quantile),
+                                              median + o.threshold_mad_k * 1.4826 * mad));
   const Eigen::Vector3i d = v.dims();
   for (int k = 0; k < d.z(); ++k)
     for (int j = 0; j < d.y(); ++j)
@@ -70,7 +71,8 @@ BrightVoxels Threshold(const imaging::Volume& v, const RansacLineDetectorOptions
 
 int FindRoot(std::vector<int>& parent, int i) {
   while (parent[static_cast<std::size_t>(i)] != i) {
-    parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
+    parent[static_cast<std::size_t>(i)] =
+        parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
     i = parent[static_cast<std::size_t>(i)];
   }
   return i;
@@ -91,7 +93,8 @@ BrightVoxels DropSurfaces(const BrightVoxels& pts, const RansacLineDetectorOptio
   std::vector<int> point_cell(pts.p_mm.size());
   for (std::size_t i = 0; i < pts.p_mm.size(); ++i) {
     const Eigen::Vector3i c = (pts.p_mm[i] * inv).array().floor().cast<int>();
-    const auto [it, added] = cell_of.emplace(key(c.x(), c.y(), c.z()), static_cast<int>(cells.size()));
+    const auto [it, added] =
+        cell_of.emplace(key(c.x(), c.y(), c.z()), static_cast<int>(cells.size()));
     if (added) cells.push_back(c);
     point_cell[i] = it->second;
   }
@@ -101,7 +104,8 @@ BrightVoxels DropSurfaces(const BrightVoxels& pts, const RansacLineDetectorOptio
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
-          const auto it = cell_of.find(key(cells[i].x() + dx, cells[i].y() + dy, cells[i].z() + dz));
+          const auto it =
+              cell_of.find(key(cells[i].x() + dx, cells[i].y() + dy, cells[i].z() + dz));
           if (it == cell_of.end()) continue;
           const int a = FindRoot(parent, static_cast<int>(i)), b = FindRoot(parent, it->second);
           if (a != b) parent[static_cast<std::size_t>(a)] = b;
@@ -124,8 +128,10 @@ BrightVoxels DropSurfaces(const BrightVoxels& pts, const RansacLineDetectorOptio
   for (const auto& [id, m] : comp) {
     const Eigen::Vector3d mean = m.sum / m.n;
     const Eigen::Matrix3d cov = m.outer / m.n - mean * mean.transpose();
-    const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov, Eigen::EigenvaluesOnly).eigenvalues();
-    keep[id] = std::sqrt(std::max(0.0, ev(1))) <= o.max_component_sigma_mm;  // ascending: ev(1) middle
+    const Eigen::Vector3d ev =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov, Eigen::EigenvaluesOnly).eigenvalues();
+    keep[id] =
+        std::sqrt(std::max(0.0, ev(1))) <= o.max_component_sigma_mm;  // ascending: ev(1) middle
   }
   BrightVoxels out;
   for (std::size_t i = 0; i < pts.p_mm.size(); ++i) {
@@ -138,7 +144,8 @@ BrightVoxels DropSurfaces(const BrightVoxels& pts, const RansacLineDetectorOptio
 
 // Best two-point hypothesis by score (inliers − shell_penalty × shell points) on a random
 // subset of the points.
-Line3 RansacLine(const BrightVoxels& pts, const RansacLineDetectorOptions& o, std::mt19937_64& rng) {
+Line3 RansacLine(const BrightVoxels& pts, const RansacLineDetectorOptions& o,
+                 std::mt19937_64& rng) {
   std::vector<std::size_t> idx(pts.p_mm.size());
   for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = i;
   const std::size_t m = std::min(idx.size(), static_cast<std::size_t>(o.max_points));
@@ -165,7 +172,8 @@ Line3 RansacLine(const BrightVoxels& pts, const RansacLineDetectorOptions& o, st
       if (d2 >= std::max(sep2, 1e-12) && d2 <= far2) near.push_back(i);
     }
     if (near.empty()) continue;
-    const Eigen::Vector3d& b = sub[near[std::uniform_int_distribution<std::size_t>(0, near.size() - 1)(rng)]];
+    const Eigen::Vector3d& b =
+        sub[near[std::uniform_int_distribution<std::size_t>(0, near.size() - 1)(rng)]];
     const Eigen::Vector3d dir = (b - a).normalized();
     double count = 0;
     for (const auto& p : sub) {
@@ -207,8 +215,9 @@ std::vector<std::size_t> LongestRun(const BrightVoxels& pts, const Line3& line,
   });
   std::size_t best_a = 0, best_n = 0, a = 0;
   for (std::size_t i = 1; i <= in.size(); ++i) {
-    const bool split = i == in.size() ||
-                       line.Parameter(pts.p_mm[in[i]]) - line.Parameter(pts.p_mm[in[i - 1]]) > max_gap;
+    const bool split =
+        i == in.size() ||
+        line.Parameter(pts.p_mm[in[i]]) - line.Parameter(pts.p_mm[in[i - 1]]) > max_gap;
     if (!split) continue;
     if (i - a > best_n) {
       best_n = i - a;
@@ -220,7 +229,8 @@ std::vector<std::size_t> LongestRun(const BrightVoxels& pts, const Line3& line,
 }
 
 // Distance from p outward along dir to the volume's bounding box.
-double DistanceToBox(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& p, const Eigen::Vector3d& dir) {
+double DistanceToBox(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& p,
+                     const Eigen::Vector3d& dir) {
   double t = std::numeric_limits<double>::infinity();
   for (int a = 0; a < 3; ++a) {
     if (dir[a] > 1e-12) t = std::min(t, (box.max()[a] - p[a]) / dir[a]);
@@ -229,7 +239,7 @@ double DistanceToBox(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& p, c
   return std::max(0.0, t);
 }
 
-double Median(std::vector<double> v) {
+double UpperMedian(std::vector<double> v) {
   auto mid = v.begin() + static_cast<long>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
   return *mid;
@@ -246,12 +256,14 @@ void FindTarget(const imaging::Volume& v, double level, const RansacLineDetector
   }
   const std::size_t nbg = std::min(ray.size(), static_cast<std::size_t>(4.0 / ds));
   if (nbg == 0) return;
-  const double bg = Median(std::vector<double>(ray.begin(), ray.begin() + static_cast<long>(nbg)));
+  const double bg =
+      UpperMedian(std::vector<double>(ray.begin(), ray.begin() + static_cast<long>(nbg)));
   const double cut = bg + o.target_fraction * (level - bg);
   for (std::size_t i = 0; i < ray.size(); ++i) {
     if (ray[i] < cut || ray[i] <= bg) continue;
     double at = o.target_start_mm + static_cast<double>(i) * ds;
-    if (i > 0 && ray[i] > ray[i - 1]) at -= ds * std::min(1.0, (ray[i] - cut) / (ray[i] - ray[i - 1]));
+    if (i > 0 && ray[i] > ray[i - 1])
+      at -= ds * std::min(1.0, (ray[i] - cut) / (ray[i] - ray[i - 1]));
     d.target_found = true;
     d.target_mm = d.tip_mm + at * d.axis.direction;
     return;
@@ -272,16 +284,20 @@ void RansacLineDetectorOptions::Validate() const {
   if (iterations < 1) bad("iterations");
   if (!(inlier_radius_mm > 0 && std::isfinite(inlier_radius_mm))) bad("inlier_radius_mm");
   if (!(shell_penalty >= 0 && std::isfinite(shell_penalty))) bad("shell_penalty");
-  if (!(min_sample_separation_mm >= 0 && std::isfinite(min_sample_separation_mm))) bad("min_sample_separation_mm");
-  if (!(max_sample_separation_mm > min_sample_separation_mm && std::isfinite(max_sample_separation_mm)))
+  if (!(min_sample_separation_mm >= 0 && std::isfinite(min_sample_separation_mm)))
+    bad("min_sample_separation_mm");
+  if (!(max_sample_separation_mm > min_sample_separation_mm &&
+        std::isfinite(max_sample_separation_mm)))
     bad("max_sample_separation_mm");
-  if (!(max_component_sigma_mm >= 0 && std::isfinite(max_component_sigma_mm))) bad("max_component_sigma_mm");
+  if (!(max_component_sigma_mm >= 0 && std::isfinite(max_component_sigma_mm)))
+    bad("max_component_sigma_mm");
   if (!(component_cell_mm > 0 && std::isfinite(component_cell_mm))) bad("component_cell_mm");
   if (!(max_gap_mm > 0 && std::isfinite(max_gap_mm))) bad("max_gap_mm");
   if (min_inliers < 2) bad("min_inliers");
   if (!(min_line_length_mm >= 0 && std::isfinite(min_line_length_mm))) bad("min_line_length_mm");
   if (!(target_start_mm >= 0 && std::isfinite(target_start_mm))) bad("target_start_mm");
-  if (!(target_search_mm > target_start_mm && std::isfinite(target_search_mm))) bad("target_search_mm");
+  if (!(target_search_mm > target_start_mm && std::isfinite(target_search_mm)))
+    bad("target_search_mm");
   if (!(target_fraction > 0 && target_fraction <= 1)) bad("target_fraction");
 }
 
@@ -316,14 +332,16 @@ CatheterDetection RansacLineDetector::Detect(const imaging::Volume& v) const {
   d.line_length_mm = s1 - s0;
   if (d.line_length_mm < o.min_line_length_mm) return d;
   const auto box = v.BoundingBoxMm();
-  const Eigen::Vector3d p0 = line.point + s0 * line.direction, p1 = line.point + s1 * line.direction;
-  const bool tip_high = DistanceToBox(box, p0, -line.direction) <= DistanceToBox(box, p1, line.direction);
+  const Eigen::Vector3d p0 = line.point + s0 * line.direction,
+                        p1 = line.point + s1 * line.direction;
+  const bool tip_high =
+      DistanceToBox(box, p0, -line.direction) <= DistanceToBox(box, p1, line.direction);
   d.axis = Line3{line.point, tip_high ? line.direction : Eigen::Vector3d(-line.direction)};
   d.tip_mm = tip_high ? p1 : p0;
   d.found = true;
   d.confidence = std::min(1.0, static_cast<double>(in.size()) / (4.0 * o.min_inliers)) *
                  std::min(1.0, d.line_length_mm / std::max(1e-9, 2.0 * o.min_line_length_mm));
-  FindTarget(v, Median(values), o, d);
+  FindTarget(v, UpperMedian(values), o, d);
   return d;
 }
 

@@ -1,29 +1,12 @@
 // RANSAC line detector: the usual peer baseline the Radon detector (tracking/radon_detector.h)
 // is measured against (tracking/detector_accuracy.h, `echoservo bench detect`).
 //
-// Steps: threshold the voxels; drop the bright connected components that are surfaces rather
-// than lines (spread along two principal axes: the tank floor, bone); RANSAC on the bright
-// voxels' positions — two-point hypotheses, the second point drawn near the first, scored by
-// their inliers within a radius less the points in the shell just outside it (a line-vs-
-// surface test, like the Radon detector's ring contrast); total-least-squares refit of the
-// inliers (tracking/line_fit.h FitLine); the longest run of inliers along the line (gaps ≤
-// max_gap_mm); the tip at the run's end away from where the line enters the volume; the
-// target at the first bright sample straight ahead of the tip. Returns the same
-// CatheterDetection as the Radon detector. Deterministic: the RNG is seeded from the options.
-//
-// Threshold: T = min(v_max, max(P_q, m + k·1.4826·MAD)), where P_q is the `threshold_quantile`
-// of the non-zero voxel values, m and MAD their median and median absolute deviation and
-// v_max the brightest voxel; voxels with value ≥ T and > m are kept (so constant and
-// saturated volumes keep none).
-// Tip end: the catheter comes in from outside the field of view, so the end of the inlier run
-// whose outward distance along the line to the volume's bounding box is shorter is the entry;
-// the other end is the tip (the end deeper inside the volume).
-// Target: along the axis from `target_start_mm` beyond the tip (0.25 mm steps, up to
-// `target_search_mm`), the first sample ≥ b + `target_fraction` · (level − b), where level is
-// the median value of the inlier voxels and b the median of the first 4 mm of samples (the
-// local background ahead of the tip); linearly interpolated between samples.
-//
-// Units: mm, in the volume's image (physical) frame (imaging/volume.h, Volume::IndexToPhysical).
+// Threshold, surface removal, local two-point RANSAC scored against a shell, TLS refit and the
+// longest inlier run; the tip at its end away from where the line enters the volume, the target
+// at the first bright sample ahead of it. In: a Volume. Out: the same CatheterDetection as the
+// Radon detector, in the volume's image frame (mm). Deterministic: the RNG is seeded from the
+// options. Errors: Validate throws std::invalid_argument naming the field.
+// Details: docs/detector.md#ransac-baseline-trackingransac_line_detectorh
 #pragma once
 
 #include <cstdint>
@@ -34,17 +17,17 @@
 namespace echoservo::tracking {
 
 struct RansacLineDetectorOptions {
-  double threshold_quantile = 0.99;   // of the non-zero voxel values, [0.5, 1)
-  double threshold_mad_k = 3.0;       // T ≥ median + k·1.4826·MAD, ≥ 0
+  double threshold_quantile = 0.99;  // of the non-zero voxel values, [0.5, 1)
+  double threshold_mad_k = 3.0;      // T ≥ median + k·1.4826·MAD, ≥ 0
   // Surface removal before RANSAC: bright voxels binned into cells of component_cell_mm,
   // 26-connected cells form components, and a component whose middle principal standard
   // deviation exceeds max_component_sigma_mm (a surface: the tank floor, a bone) is dropped;
   // a line or a tube keeps two small ones. 0: off.
   double max_component_sigma_mm = 2.0;  // ≥ 0
   double component_cell_mm = 2.0;       // > 0
-  int max_points = 4000;              // random subset used to score hypotheses, ≥ 100
-  int iterations = 1500;              // RANSAC hypotheses, ≥ 1
-  double inlier_radius_mm = 1.5;      // > 0 (the sheath is 2.5 mm across)
+  int max_points = 4000;                // random subset used to score hypotheses, ≥ 100
+  int iterations = 1500;                // RANSAC hypotheses, ≥ 1
+  double inlier_radius_mm = 1.5;        // > 0 (the sheath is 2.5 mm across)
   // The two sample points of a hypothesis lie min..max apart (local sampling, NAPSAC: the
   // second point is drawn near the first, so a structure holding a few % of the bright voxels
   // still gets hypotheses within a few thousand iterations).
@@ -55,12 +38,12 @@ struct RansacLineDetectorOptions {
   // and keeps thin tubes; 0 is the plain inlier count. (Plain RANSAC, without this and the
   // surface removal, locks onto the saturated tank floor in every simulated volume.)
   double shell_penalty = 1.0;
-  double max_gap_mm = 3.0;            // inlier runs along the line split at larger gaps, > 0
-  int min_inliers = 30;               // fewer: not found, ≥ 2
-  double min_line_length_mm = 6.0;    // shorter runs: not found, ≥ 0
-  double target_start_mm = 2.0;       // target search starts this far beyond the tip, ≥ 0
-  double target_search_mm = 40.0;     // and ends this far, > target_start_mm
-  double target_fraction = 0.25;      // of the line level, (0, 1]
+  double max_gap_mm = 3.0;          // inlier runs along the line split at larger gaps, > 0
+  int min_inliers = 30;             // fewer: not found, ≥ 2
+  double min_line_length_mm = 6.0;  // shorter runs: not found, ≥ 0
+  double target_start_mm = 2.0;     // target search starts this far beyond the tip, ≥ 0
+  double target_search_mm = 40.0;   // and ends this far, > target_start_mm
+  double target_fraction = 0.25;    // of the line level, (0, 1]
   std::uint64_t seed = 1;
 
   // Throws std::invalid_argument naming the field.

@@ -18,11 +18,16 @@
 namespace echoservo::tracking {
 
 void TubeCheckOptions::Validate() const {
-  auto bad = [](const std::string& f) { throw std::invalid_argument("TubeCheckOptions: bad " + f); };
-  if (!(core_radius_mm > 0 && core_radius_mm < ring_inner_mm)) bad("core_radius_mm (must be in (0, ring_inner_mm))");
-  if (!(ring_outer_mm > ring_inner_mm && ring_outer_mm < 100)) bad("ring_outer_mm (must be in (ring_inner_mm, 100))");
+  auto bad = [](const std::string& f) {
+    throw std::invalid_argument("TubeCheckOptions: bad " + f);
+  };
+  if (!(core_radius_mm > 0 && core_radius_mm < ring_inner_mm))
+    bad("core_radius_mm (must be in (0, ring_inner_mm))");
+  if (!(ring_outer_mm > ring_inner_mm && ring_outer_mm < 100))
+    bad("ring_outer_mm (must be in (ring_inner_mm, 100))");
   if (sectors < 4 || sectors > 64) bad("sectors (must be in [4, 64])");
-  if (!(behind_half_angle_rad >= 0 && behind_half_angle_rad < std::numbers::pi / 2)) bad("behind_half_angle_rad");
+  if (!(behind_half_angle_rad >= 0 && behind_half_angle_rad < std::numbers::pi / 2))
+    bad("behind_half_angle_rad");
   if (!(step_mm > 0 && step_mm < 100)) bad("step_mm");
 }
 
@@ -38,8 +43,10 @@ double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, do
   constexpr int kRadial = 3;
   constexpr double kArcStepMm = 0.25;
   // One section every step_mm, in parallel (TBB); a section outside the volume is NaN.
-  const int sections = s_to >= s_from ? static_cast<int>(std::floor((s_to - s_from) / o.step_mm)) + 1 : 0;
-  std::vector<double> value(static_cast<std::size_t>(std::max(0, sections)), std::numeric_limits<double>::quiet_NaN());
+  const int sections =
+      s_to >= s_from ? static_cast<int>(std::floor((s_to - s_from) / o.step_mm)) + 1 : 0;
+  std::vector<double> value(static_cast<std::size_t>(std::max(0, sections)),
+                            std::numeric_limits<double>::quiet_NaN());
   tbb::parallel_for(0, std::max(0, sections), [&](int i) {
     const double s = s_from + i * o.step_mm;
     const Eigen::Vector3d c = axis.point + s * axis.direction;
@@ -60,7 +67,8 @@ double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, do
       const double a = (k + 0.5) * 2 * std::numbers::pi / o.sectors;
       const Eigen::Vector3d dir = std::cos(a) * u + std::sin(a) * w;
       const Eigen::Vector3d tangent = -std::sin(a) * u + std::cos(a) * w;
-      if (has_behind && std::acos(std::clamp(dir.dot(behind), -1.0, 1.0)) < o.behind_half_angle_rad) continue;
+      if (has_behind && std::acos(std::clamp(dir.dot(behind), -1.0, 1.0)) < o.behind_half_angle_rad)
+        continue;
       // Per radius, the brightest sample across the sector's arc (a thin surface at any angle
       // within the sector registers); the sector's value is the median over radii (one
       // speckle spike does not make a sector bright).
@@ -76,7 +84,8 @@ double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, do
       std::sort(at_r.begin(), at_r.end());
       surround = std::max(surround, at_r[kRadial / 2]);
     }
-    value[static_cast<std::size_t>(i)] = std::clamp(1.0 - amplitude(surround) / amplitude(core), 0.0, 1.0);
+    value[static_cast<std::size_t>(i)] =
+        std::clamp(1.0 - amplitude(surround) / amplitude(core), 0.0, 1.0);
   });
   std::vector<double> per_section;
   for (double x : value)

@@ -2,17 +2,12 @@
 // plate, a tissue ridge)? Both give a peak in a Radon transform; only a tube is dark all
 // around it.
 //
-// At cross-sections every `step_mm` along the bright run, the core value is the maximum
-// within `core_radius_mm` of the axis and each of `sectors` angular sectors ⟂ the axis is
-// summarised by its mean value at radii [ring_inner_mm, ring_outer_mm]. The sector behind the
-// line along the beam (within `behind_half_angle_rad` of the beam direction ⟂ the axis) is
-// skipped: reverberation comet tails and shadows lie there. A cross-section's tubularity is
-// 1 − (echo amplitude of the brightest remaining sector) / (amplitude of the core), values
-// turned into amplitudes over the display's dynamic range; the line's is the median over
-// its cross-sections: ≈ 1 for a catheter in blood or water (blood and tissue speckle lie
-// 20–40 dB below a catheter's echo), ≈ 0 for a line lying in a surface.
-//
+// Tubularity in [0, 1]: over cross-sections every step_mm, 1 − amplitude(brightest sector
+// around the core)/amplitude(core), skipping the sector behind the line along the beam; the
+// median over the run. ≈ 1 for a catheter in blood or water, ≈ 0 for a line in a surface.
 // Units: mm and rad in the volume's image frame; values are voxel (display) values.
+// Errors: Validate throws std::invalid_argument naming the field.
+// Details: docs/detector.md#algorithm (step 7)
 #pragma once
 
 #include "imaging/volume.h"

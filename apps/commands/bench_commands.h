@@ -1,5 +1,5 @@
 // Registration of the `bench` subcommands (in-process benchmarks that print throughput and
-// accuracy): `bench detect` (apps/commands/bench_detect_command.cc).
+// accuracy): `bench detect` (apps/commands/bench_command.cc).
 #pragma once
 
 namespace CLI {

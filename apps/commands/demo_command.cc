@@ -1,22 +1,21 @@
 // `echoservo demo [--duration S] [--out RUN_DIR] [--json] [...]`: the closed-loop demo on the
-// simulated scanner and catheter (apps/live/demo_run.h). JSON: {"tip_to_target_rms_mm",
+// simulated scanner and catheter (live/demo_run.h). JSON: {"tip_to_target_rms_mm",
 // "true_tip_to_target_rms_mm", "latency_ms": {"p50", "p99", "max", "count"},
 // "dropped_frames", "volumes", "detected", "estimates_accepted", "estimates_rejected",
 // "em_samples", "em_dropouts", "servo_cycles", "servo_overruns", "limit_faults",
 // "ekf_harmonics", "ekf_rate_hz", "run_dir"}.
 #include <CLI/CLI.hpp>
-
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
-#include <optional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "apps/commands/live_commands.h"
 #include "apps/commands/report_command.h"
-#include "apps/live/demo_run.h"
+#include "live/demo_run.h"
 
 namespace echoservo::apps {
 namespace {
@@ -42,8 +41,10 @@ void RunDemoCommand(const DemoArgs& a) {
   std::string report_error;
   if (!a.out.empty()) {
     try {
-      report_rms_mm = WriteRunReport(a.out, (fs::path(a.out) / "report.html").string(), o.metrics_start_s);
-    } catch (const std::exception& e) {  // the run is written either way; say why there is no report
+      report_rms_mm =
+          WriteRunReport(a.out, (fs::path(a.out) / "report.html").string(), o.metrics_start_s);
+    } catch (
+        const std::exception& e) {  // the run is written either way; say why there is no report
       report_error = e.what();
       std::fprintf(stderr, "demo: no report for %s: %s\n", a.out.c_str(), e.what());
     }
@@ -61,7 +62,11 @@ void RunDemoCommand(const DemoArgs& a) {
     const nlohmann::json j = {
         {"tip_to_target_rms_mm", r.tip_to_target_rms_mm},
         {"true_tip_to_target_rms_mm", r.true_tip_to_target_rms_mm},
-        {"latency_ms", {{"p50", r.latency.p50_ms}, {"p99", r.latency.p99_ms}, {"max", r.latency.max_ms}, {"count", r.latency.count}}},
+        {"latency_ms",
+         {{"p50", r.latency.p50_ms},
+          {"p99", r.latency.p99_ms},
+          {"max", r.latency.max_ms},
+          {"count", r.latency.count}}},
         {"dropped_frames", r.dropped_frames},
         {"missed_acquisitions", r.missed_acquisitions},
         {"tracker_errors", r.tracker_errors},
@@ -87,31 +92,40 @@ void RunDemoCommand(const DemoArgs& a) {
       out["report_tip_to_target_rms_mm"] = *report_rms_mm;  // EM aligned by the report itself
     }
     if (zoh) {
-      out["baseline"] = {{"predictor", "zero_order_hold"},
-                         {"tip_to_target_rms_mm", zoh->tip_to_target_rms_mm},
-                         {"true_tip_to_target_rms_mm", zoh->true_tip_to_target_rms_mm},
-                         {"latency_ms", {{"p50", zoh->latency.p50_ms}, {"p99", zoh->latency.p99_ms}}},
-                         {"limit_violations", zoh->limit_violations}};
-      out["baseline_ratio"] = r.tip_to_target_rms_mm > 0 ? zoh->tip_to_target_rms_mm / r.tip_to_target_rms_mm : 0.0;
+      out["baseline"] = {
+          {"predictor", "zero_order_hold"},
+          {"tip_to_target_rms_mm", zoh->tip_to_target_rms_mm},
+          {"true_tip_to_target_rms_mm", zoh->true_tip_to_target_rms_mm},
+          {"latency_ms", {{"p50", zoh->latency.p50_ms}, {"p99", zoh->latency.p99_ms}}},
+          {"limit_violations", zoh->limit_violations}};
+      out["baseline_ratio"] =
+          r.tip_to_target_rms_mm > 0 ? zoh->tip_to_target_rms_mm / r.tip_to_target_rms_mm : 0.0;
     }
     std::cout << out.dump(2) << "\n";
     return;
   }
-  std::printf("tip-to-target RMS: %.3f mm (EM tracker), %.3f mm (true tip); seed water tank: 0.86 mm\n",
-              r.tip_to_target_rms_mm, r.true_tip_to_target_rms_mm);
-  std::printf("latency arrival → setpoint: p50 %.2f ms, p99 %.2f ms, max %.2f ms (%llu volumes)\n", r.latency.p50_ms,
-              r.latency.p99_ms, r.latency.max_ms, static_cast<unsigned long long>(r.latency.count));
-  std::printf("volumes %llu, detected %llu, dropped %llu; EM samples %llu (%llu drop-outs); servo overruns %llu\n",
-              static_cast<unsigned long long>(r.volumes), static_cast<unsigned long long>(r.detected),
-              static_cast<unsigned long long>(r.dropped_frames), static_cast<unsigned long long>(r.em_samples),
-              static_cast<unsigned long long>(r.em_dropouts), static_cast<unsigned long long>(r.servo_overruns));
+  std::printf(
+      "tip-to-target RMS: %.3f mm (EM tracker), %.3f mm (true tip); seed water tank: 0.86 mm\n",
+      r.tip_to_target_rms_mm, r.true_tip_to_target_rms_mm);
+  std::printf("latency arrival → setpoint: p50 %.2f ms, p99 %.2f ms, max %.2f ms (%llu volumes)\n",
+              r.latency.p50_ms, r.latency.p99_ms, r.latency.max_ms,
+              static_cast<unsigned long long>(r.latency.count));
+  std::printf(
+      "volumes %llu, detected %llu, dropped %llu; EM samples %llu (%llu drop-outs); servo overruns "
+      "%llu\n",
+      static_cast<unsigned long long>(r.volumes), static_cast<unsigned long long>(r.detected),
+      static_cast<unsigned long long>(r.dropped_frames),
+      static_cast<unsigned long long>(r.em_samples), static_cast<unsigned long long>(r.em_dropouts),
+      static_cast<unsigned long long>(r.servo_overruns));
   if (zoh)
-    std::printf("baseline (zero-order hold, same process): %.3f mm (EM), %.3f mm (true tip): %.1f× the EKF's error\n",
-                zoh->tip_to_target_rms_mm, zoh->true_tip_to_target_rms_mm,
-                r.tip_to_target_rms_mm > 0 ? zoh->tip_to_target_rms_mm / r.tip_to_target_rms_mm : 0.0);
+    std::printf(
+        "baseline (zero-order hold, same process): %.3f mm (EM), %.3f mm (true tip): %.1f× the "
+        "EKF's error\n",
+        zoh->tip_to_target_rms_mm, zoh->true_tip_to_target_rms_mm,
+        r.tip_to_target_rms_mm > 0 ? zoh->tip_to_target_rms_mm / r.tip_to_target_rms_mm : 0.0);
   if (report_rms_mm)
-    std::printf("run written to %s; its report (%s/report.html): %.3f mm\n", a.out.c_str(), a.out.c_str(),
-                *report_rms_mm);
+    std::printf("run written to %s; its report (%s/report.html): %.3f mm\n", a.out.c_str(),
+                a.out.c_str(), *report_rms_mm);
   else if (!a.out.empty())
     std::printf("run written to %s (no report: %s)\n", a.out.c_str(), report_error.c_str());
 }
@@ -120,32 +134,48 @@ void RunDemoCommand(const DemoArgs& a) {
 
 void AddLiveCommands(CLI::App& app) {
   auto args = std::make_shared<DemoArgs>();
-  CLI::App* demo = app.add_subcommand(
-      "demo", "closed loop on the simulated scanner and catheter: tracker, heartbeat EKF, 1 kHz servo, EM tracker");
+  CLI::App* demo = app.add_subcommand("demo",
+                                      "closed loop on the simulated scanner and catheter: tracker, "
+                                      "heartbeat EKF, 1 kHz servo, EM tracker");
   auto& o = args->options;
-  demo->add_option("--duration", o.duration_s, "run length, s (real time)")->check(CLI::Range(0.5, 3600.0));
+  demo->add_option("--duration", o.duration_s, "run length, s (real time)")
+      ->check(CLI::Range(0.5, 3600.0));
   demo->add_option("--rate", o.rate_hz, "volume rate, vol/s")->check(CLI::Range(1.0, 60.0));
-  demo->add_option("--delay-min", o.delay_min_s, "imaging delay, lower end, s")->check(CLI::Range(0.0, 1.0));
-  demo->add_option("--delay-max", o.delay_max_s, "imaging delay, upper end, s")->check(CLI::Range(0.0, 1.0));
-  demo->add_option("--heart-rate", o.heart_rate_bpm, "target heart rate, bpm")->check(CLI::Range(30.0, 180.0));
-  demo->add_option("--target-p2p", o.target_p2p_mm, "target excursion, mm peak to peak")->check(CLI::Range(0.1, 20.0));
-  demo->add_option("--standoff", o.standoff_mm, "tip-to-target standoff along the axis, mm")->check(CLI::Range(0.0, 30.0));
-  demo->add_option("--metrics-start", o.metrics_start_s, "figures from this time on, s")->check(CLI::Range(0.0, 3600.0));
+  demo->add_option("--delay-min", o.delay_min_s, "imaging delay, lower end, s")
+      ->check(CLI::Range(0.0, 1.0));
+  demo->add_option("--delay-max", o.delay_max_s, "imaging delay, upper end, s")
+      ->check(CLI::Range(0.0, 1.0));
+  demo->add_option("--heart-rate", o.heart_rate_bpm, "target heart rate, bpm")
+      ->check(CLI::Range(30.0, 180.0));
+  demo->add_option("--target-p2p", o.target_p2p_mm, "target excursion, mm peak to peak")
+      ->check(CLI::Range(0.1, 20.0));
+  demo->add_option("--standoff", o.standoff_mm, "tip-to-target standoff along the axis, mm")
+      ->check(CLI::Range(0.0, 30.0));
+  demo->add_option("--metrics-start", o.metrics_start_s, "figures from this time on, s")
+      ->check(CLI::Range(0.0, 3600.0));
   demo->add_option("--seed", o.seed, "simulation seed");
-  demo->add_option("--harmonics", o.harmonics, "EKF harmonics (it publishes after 2·(2·N + 4) volumes)")
+  demo->add_option("--harmonics", o.harmonics,
+                   "EKF harmonics (it publishes after 2·(2·N + 4) volumes)")
       ->check(CLI::Range(1, 12));
-  demo->add_option("--sheath-id", o.sheath_id_mm, "catheter sheath inner diameter, mm (seed water tank: 1.59)");
-  demo->add_option("--guidewire-od", o.guidewire_od_mm, "guidewire outer diameter, mm (seed water tank: 1.50)");
-  demo->add_option("--dds-domain", o.dds_domain, "DDS domain of the tracker → servo link (loopback only)")
+  demo->add_option("--sheath-id", o.sheath_id_mm,
+                   "catheter sheath inner diameter, mm (seed water tank: 1.59)");
+  demo->add_option("--guidewire-od", o.guidewire_od_mm,
+                   "guidewire outer diameter, mm (seed water tank: 1.50)");
+  demo->add_option("--dds-domain", o.dds_domain,
+                   "DDS domain of the tracker → servo link (loopback only)")
       ->check(CLI::Range(0, 232));
   demo->add_option("--secure", o.secure_dir,
-                  "DDS-Security: the credential directory of `echoservo security init DIR` (tracker and servo identities)");
-  demo->add_option("--out", args->out, "write the run (RUN directory: targets, servo, latency, EM log, truth)");
+                   "DDS-Security: the credential directory of `echoservo security init DIR` "
+                   "(tracker and servo identities)");
+  demo->add_option("--out", args->out,
+                   "write the run (RUN directory: targets, servo, latency, EM log, truth)");
   demo->add_flag("--save-volumes", o.save_volumes,
-                 "also record the volumes the tracker receives to RUN/volumes.igs.mhd (+ .raw), each as it is processed, "
+                 "also record the volumes the tracker receives to RUN/volumes.igs.mhd (+ .raw), "
+                 "each as it is processed, "
                  "for `track --replay`");
   demo->add_flag("--baseline", args->baseline,
-                 "then run the same demo with a zero-order hold instead of the EKF (same process) and report the ratio");
+                 "then run the same demo with a zero-order hold instead of the EKF (same process) "
+                 "and report the ratio");
   demo->add_flag("--json", args->json, "print the figures as JSON");
   demo->callback([args] { RunDemoCommand(*args); });
   AddTrackCommand(app);

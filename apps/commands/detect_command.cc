@@ -5,7 +5,6 @@
 //                "confidence", "tubularity", "tracked", "time_ms"}]}
 // (axis/tip/target are null when not found; target is null when no tissue lies ahead).
 #include <CLI/CLI.hpp>
-
 #include <chrono>
 #include <iostream>
 #include <memory>
@@ -20,12 +19,15 @@ namespace echoservo::apps {
 
 namespace {
 
-nlohmann::json Vec3(const Eigen::Vector3d& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); }
+nlohmann::json Vec3(const Eigen::Vector3d& v) {
+  return nlohmann::json::array({v.x(), v.y(), v.z()});
+}
 
 }  // namespace
 
 void AddDetectCommand(CLI::App& app) {
-  auto* cmd = app.add_subcommand("detect", "Detect the catheter axis, tip and target in a volume or PLUS sequence");
+  auto* cmd = app.add_subcommand(
+      "detect", "Detect the catheter axis, tip and target in a volume or PLUS sequence");
   auto file = std::make_shared<std::string>();
   auto json = std::make_shared<bool>(false);
   auto track = std::make_shared<bool>(false);
@@ -92,9 +94,10 @@ void AddDetectCommand(CLI::App& app) {
       } else if (!f["found"].get<bool>()) {
         std::cout << "not found (confidence " << f["confidence"].dump() << ")\n";
       } else {
-        std::cout << "axis " << f["axis_point"].dump() << " dir " << f["axis_direction"].dump() << " tip "
-                  << f["tip"].dump() << " target " << f["target"].dump() << " confidence "
-                  << f["confidence"].dump() << " (" << f["time_ms"].dump() << " ms)\n";
+        std::cout << "axis " << f["axis_point"].dump() << " dir " << f["axis_direction"].dump()
+                  << " tip " << f["tip"].dump() << " target " << f["target"].dump()
+                  << " confidence " << f["confidence"].dump() << " (" << f["time_ms"].dump()
+                  << " ms)\n";
       }
     }
   });

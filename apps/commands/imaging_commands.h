@@ -11,6 +11,8 @@ namespace echoservo::apps {
 void AddInfoCommand(CLI::App& app);
 void AddDetectCommand(CLI::App& app);
 void AddRenderCommand(CLI::App& app);
-void AddStreamCommands(CLI::App& app);
+void AddScannerCommand(CLI::App& app);
+void AddIngestCommand(CLI::App& app);
+void AddReplayCommand(CLI::App& app);
 
 }  // namespace echoservo::apps

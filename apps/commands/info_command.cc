@@ -3,7 +3,6 @@
 // (mm), element type, compression, per-frame field names and, for sequences, the timestamp
 // range (s). Errors (missing/corrupt file) exit non-zero with a message naming the file.
 #include <CLI/CLI.hpp>
-
 #include <iostream>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -21,13 +20,16 @@ namespace echoservo::apps {
 
 namespace {
 
-nlohmann::json Vec3(const Eigen::Vector3d& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); }
+nlohmann::json Vec3(const Eigen::Vector3d& v) {
+  return nlohmann::json::array({v.x(), v.y(), v.z()});
+}
 
 nlohmann::json Describe(const std::filesystem::path& path) {
   nlohmann::json j;
   j["file"] = path.string();
   if (imaging::IsPlusSequenceFile(path)) {
-    const imaging::SequenceReader reader(path);  // header and fields; uncompressed pixels stay on disk
+    const imaging::SequenceReader reader(
+        path);  // header and fields; uncompressed pixels stay on disk
     const imaging::PlusSequence& s = reader.sequence();
     j["kind"] = "sequence";
     j["frames"] = s.frames.size();
@@ -86,7 +88,8 @@ std::string Join(const nlohmann::json& array, const std::string& sep = " ") {
 }  // namespace
 
 void AddInfoCommand(CLI::App& app) {
-  auto* cmd = app.add_subcommand("info", "Describe a volume file or PLUS sequence (.mha .mhd .vti .nrrd .igs.mha .igs.nrrd)");
+  auto* cmd = app.add_subcommand(
+      "info", "Describe a volume file or PLUS sequence (.mha .mhd .vti .nrrd .igs.mha .igs.nrrd)");
   auto file = std::make_shared<std::string>();
   auto json = std::make_shared<bool>(false);
   cmd->add_option("FILE", *file, "volume or sequence file")->required();
@@ -109,8 +112,8 @@ void AddInfoCommand(CLI::App& app) {
       std::cout << "timestamps (s): " << Join(j["timestamp_range"], " to ") << "\n";
     }
     if (j.contains("rate_hz")) std::cout << "rate (Hz):     " << j["rate_hz"].dump() << "\n";
-    std::cout << "frame fields:  " << (j["frame_fields"].empty() ? "(none)" : Join(j["frame_fields"], ", "))
-              << "\n";
+    std::cout << "frame fields:  "
+              << (j["frame_fields"].empty() ? "(none)" : Join(j["frame_fields"], ", ")) << "\n";
   });
 }
 

@@ -5,28 +5,27 @@
 #include <nlohmann/json.hpp>
 
 #include "apps/output.h"
-#include "estimation/motion_diagnosis.h"
+#include "lab/motion_diagnosis.h"
 
 namespace echoservo::apps {
 namespace {
 
-estimation::MotionModelSpec Spec(const MotionLabFlags& f) {
-  return estimation::ParseMotionModel(f.model == "seed" || f.model.empty() ? "heartbeat:2"
-                                                                           : f.model);
+lab::MotionModelSpec Spec(const MotionLabFlags& f) {
+  return lab::ParseMotionModel(f.model == "seed" || f.model.empty() ? "heartbeat:2" : f.model);
 }
 
 nlohmann::json Nullable(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
-nlohmann::json ParamsJson(const estimation::MotionFit& fit) {
+nlohmann::json ParamsJson(const lab::MotionFit& fit) {
   nlohmann::json p = nlohmann::json::object();
   for (const auto& e : fit.estimates)
     p[e.name] = {{"value", e.value}, {"sd", Nullable(e.sd)}, {"unit", e.unit}};
   return p;
 }
 
-nlohmann::json GroupsJson(const std::vector<estimation::MotionGroup>& groups) {
+nlohmann::json GroupsJson(const std::vector<lab::MotionGroup>& groups) {
   nlohmann::json out = nlohmann::json::array();
   for (const auto& g : groups) {
     out.push_back({{"group", g.label},
@@ -38,7 +37,7 @@ nlohmann::json GroupsJson(const std::vector<estimation::MotionGroup>& groups) {
   return out;
 }
 
-void PrintGroups(const char* title, const std::vector<estimation::MotionGroup>& groups) {
+void PrintGroups(const char* title, const std::vector<lab::MotionGroup>& groups) {
   std::cout << "\nby " << title << ":\n";
   Table t({"group", "samples", "rms_mm", "share_of_samples", "share_of_error_sq"});
   for (const auto& g : groups) {
@@ -52,14 +51,14 @@ void PrintGroups(const char* title, const std::vector<estimation::MotionGroup>& 
 
 void RunMotionCompare(const MotionLabFlags& f) {
   const estimation::MotionTrace trace = estimation::ReadMotionTrace(f.trace, f.column);
-  const estimation::MotionModelSpec spec = Spec(f);
-  const double noise = estimation::MotionLabNoise(spec, trace);
-  const estimation::MotionFit fit = estimation::FitMotionModel(spec, trace, noise);
-  const estimation::MotionBreakdown b = estimation::ComputeMotionBreakdown(trace, fit);
+  const lab::MotionModelSpec spec = Spec(f);
+  const double noise = lab::MotionLabNoise(spec, trace);
+  const lab::MotionFit fit = lab::FitMotionModel(spec, trace, noise);
+  const lab::MotionBreakdown b = lab::ComputeMotionBreakdown(trace, fit);
   if (f.json) {
     std::cout << nlohmann::json{{"trace", f.trace},
                                 {"column", trace.column},
-                                {"model", estimation::FormatMotionModel(spec)},
+                                {"model", lab::FormatMotionModel(spec)},
                                 {"rms_mm", fit.rms_mm},
                                 {"noise_mm", noise},
                                 {"mse_noise", fit.mse_norm},
@@ -72,9 +71,9 @@ void RunMotionCompare(const MotionLabFlags& f) {
               << "\n";
     return;
   }
-  std::cout << "model " << estimation::FormatMotionModel(spec) << " on " << f.trace << " ("
-            << trace.column << "): position RMS " << Fixed(fit.rms_mm, 4) << " mm (noise "
-            << Fixed(noise, 4) << " mm)\n\n";
+  std::cout << "model " << lab::FormatMotionModel(spec) << " on " << f.trace << " (" << trace.column
+            << "): position RMS " << Fixed(fit.rms_mm, 4) << " mm (noise " << Fixed(noise, 4)
+            << " mm)\n\n";
   Table p({"parameter", "value", "sd", "unit"});
   for (const auto& e : fit.estimates)
     p.AddRow({e.name, Fixed(e.value, 5), std::isfinite(e.sd) ? Fixed(e.sd, 5) : "-", e.unit});
@@ -86,8 +85,8 @@ void RunMotionCompare(const MotionLabFlags& f) {
 
 void RunMotionDiagnose(const MotionLabFlags& f) {
   const estimation::MotionTrace trace = estimation::ReadMotionTrace(f.trace, f.column);
-  const estimation::MotionModelSpec spec = Spec(f);
-  const estimation::MotionDiagnosis d = estimation::DiagnoseMotion(spec, trace);
+  const lab::MotionModelSpec spec = Spec(f);
+  const lab::MotionDiagnosis d = lab::DiagnoseMotion(spec, trace);
   if (f.json) {
     nlohmann::json candidates = nlohmann::json::array();
     for (const auto& c : d.candidates) {
@@ -102,7 +101,7 @@ void RunMotionDiagnose(const MotionLabFlags& f) {
     }
     std::cout << nlohmann::json{{"trace", f.trace},
                                 {"column", trace.column},
-                                {"model", estimation::FormatMotionModel(spec)},
+                                {"model", lab::FormatMotionModel(spec)},
                                 {"rms_mm", d.base.rms_mm},
                                 {"noise_mm", d.noise_mm},
                                 {"cv_mse_noise", d.base_cv_mse},
@@ -114,13 +113,13 @@ void RunMotionDiagnose(const MotionLabFlags& f) {
               << "\n";
     return;
   }
-  std::cout << "model " << estimation::FormatMotionModel(spec) << ": position RMS "
+  std::cout << "model " << lab::FormatMotionModel(spec) << ": position RMS "
             << Fixed(d.base.rms_mm, 4) << " mm (noise " << Fixed(d.noise_mm, 4) << " mm)\n\n";
   Table t({"rank", "candidate", "rms_mm", "held-out excess removed", "significant"});
   int rank = 1;
   for (const auto& c : d.candidates) {
     t.AddRow({std::to_string(rank++), "+" + c.effect, Fixed(c.fit.rms_mm, 4),
-              std::isfinite(c.explained) ? estimation::PercentText(c.explained) : "-",
+              std::isfinite(c.explained) ? lab::PercentText(c.explained) : "-",
               c.significant ? "yes" : "no"});
   }
   t.Print(std::cout);

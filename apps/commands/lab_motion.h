@@ -1,5 +1,5 @@
 // `lab compare|diagnose` on a target-motion trace (a CSV file instead of a dataset
-// folder): the motion lab (estimation/motion_diagnosis.h).
+// folder): the motion lab (lab/motion_diagnosis.h).
 #pragma once
 
 #include <string>

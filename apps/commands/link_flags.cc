@@ -18,19 +18,26 @@ extern "C" void OnStopSignal(int) { g_stop.store(true); }
 }  // namespace
 
 void AddLinkFlags(CLI::App& cmd, LinkFlags& f) {
-  cmd.add_option("--dds-domain", f.domain, "DDS domain of the tracker ↔ servo link")->check(CLI::Range(0, 232));
+  cmd.add_option("--dds-domain", f.domain, "DDS domain of the tracker ↔ servo link")
+      ->check(CLI::Range(0, 232));
   cmd.add_flag("--loopback", f.loopback, "this host only: UDP on 127.0.0.1, no multicast");
-  cmd.add_option("--interface", f.interfaces, "IPv4 address of an interface to use (repeatable; default: all)");
-  cmd.add_option("--peer", f.peers, "unicast discovery peer A.B.C.D[:PORT] where multicast does not pass (repeatable)");
+  cmd.add_option("--interface", f.interfaces,
+                 "IPv4 address of an interface to use (repeatable; default: all)");
+  cmd.add_option(
+      "--peer", f.peers,
+      "unicast discovery peer A.B.C.D[:PORT] where multicast does not pass (repeatable)");
   cmd.add_flag("--no-shm", f.no_shm, "UDP only (no shared-memory transport)");
-  cmd.add_option("--secure", f.secure_dir,
-                 "DDS-Security: the credential directory of `echoservo security init DIR` (authentication, "
-                 "access control, encryption)");
-  cmd.add_option("--secure-identity", f.secure_identity,
-                 "the participant's identity in the --secure directory (default: this command's role)");
+  cmd.add_option(
+      "--secure", f.secure_dir,
+      "DDS-Security: the credential directory of `echoservo security init DIR` (authentication, "
+      "access control, encryption)");
+  cmd.add_option(
+      "--secure-identity", f.secure_identity,
+      "the participant's identity in the --secure directory (default: this command's role)");
 }
 
-std::vector<std::pair<std::string, std::string>> SecureProperties(const std::string& dir, const std::string& role) {
+std::vector<std::pair<std::string, std::string>> SecureProperties(const std::string& dir,
+                                                                  const std::string& role) {
   try {
     return link::SecurityProperties(link::CheckSecurityDir(dir, role));
   } catch (const std::invalid_argument& e) {
@@ -38,7 +45,8 @@ std::vector<std::pair<std::string, std::string>> SecureProperties(const std::str
   }
 }
 
-link::ParticipantOptions ToParticipantOptions(const LinkFlags& f, const std::string& name, const std::string& role) {
+link::ParticipantOptions ToParticipantOptions(const LinkFlags& f, const std::string& name,
+                                              const std::string& role) {
   link::ParticipantOptions o;
   o.domain_id = f.domain;
   o.name = name;
@@ -48,7 +56,9 @@ link::ParticipantOptions ToParticipantOptions(const LinkFlags& f, const std::str
   o.shared_memory = !f.no_shm;  // loopback_only sets its own transports (UDP only)
   if (!f.secure_identity.empty() && f.secure_dir.empty())
     throw std::invalid_argument("--secure-identity needs --secure DIR");
-  if (!f.secure_dir.empty()) o.properties = SecureProperties(f.secure_dir, f.secure_identity.empty() ? role : f.secure_identity);
+  if (!f.secure_dir.empty())
+    o.properties =
+        SecureProperties(f.secure_dir, f.secure_identity.empty() ? role : f.secure_identity);
   o.Validate();
   return o;
 }

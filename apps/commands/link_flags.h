@@ -32,9 +32,11 @@ void AddLinkFlags(CLI::App& cmd, LinkFlags& flags);
 // `role` is the participant's identity in a --secure directory (tracker, servo, operator).
 // Throws std::invalid_argument naming the flag (ParticipantOptions::Validate) or, for
 // --secure, the credential file and what is wrong with it (link::CheckSecurityDir).
-link::ParticipantOptions ToParticipantOptions(const LinkFlags& flags, const std::string& name, const std::string& role);
+link::ParticipantOptions ToParticipantOptions(const LinkFlags& flags, const std::string& name,
+                                              const std::string& role);
 // The dds.sec.* properties of `role` in `dir` (--secure), errors prefixed with the flag.
-std::vector<std::pair<std::string, std::string>> SecureProperties(const std::string& dir, const std::string& role);
+std::vector<std::pair<std::string, std::string>> SecureProperties(const std::string& dir,
+                                                                  const std::string& role);
 
 // SIGINT/SIGTERM set a flag that a command's loop polls, so it ends cleanly: the servo
 // leaves its loop, prints its summary and its participant leaves the domain.

@@ -1,7 +1,7 @@
 // Registration of the live-pipeline commands: `demo` (apps/commands/demo_command.cc, the
-// closed-loop simulated scanner → tracker → servo run, apps/live/demo_run.h), and the
+// closed-loop simulated scanner → tracker → servo run, live/demo_run.h), and the
 // separate processes `track` (track_command.cc), `servo` (servo_command.cc) and
-// `command` (servo_command_tool.cc, operator commands over DDS), `security`
+// `command` (command_command.cc, operator commands over DDS), `security`
 // (security_command.cc: DDS-Security credentials for them) and `faults` (faults_command.cc,
 // the servo's fault-injection scenarios).
 #pragma once

@@ -122,8 +122,8 @@ void RunPredict(const PredictFlags& f) {
             << " bpm at the end, measurement noise " << Fixed(r.noise_mm, 3) << " mm, "
             << r.accepted << " accepted, " << r.rejected << " rejected, " << r.initialisations
             << " initialisation(s), respiration term "
-            << (r.respiration ? "on (" + Fixed(r.offset_rate_q_mm_s, 2) + " mm/s/√s)" : "off") << " ["
-            << RespirationMode(f) << "]\n";
+            << (r.respiration ? "on (" + Fixed(r.offset_rate_q_mm_s, 2) + " mm/s/√s)" : "off")
+            << " [" << RespirationMode(f) << "]\n";
 }
 
 }  // namespace

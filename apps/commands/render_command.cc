@@ -16,7 +16,6 @@
 #include "imaging/io/recording.h"
 #include "imaging/render/volume_render.h"
 
-
 namespace echoservo::apps {
 namespace {
 
@@ -75,8 +74,8 @@ void RunRender(const RenderFlags& f) {
   if (!f.axis.empty()) {
     const std::vector<double> v = ParseNumberList(f.axis, "--axis");
     if (v.size() != 6) {
-      throw std::invalid_argument("--axis: expected PX,PY,PZ,DX,DY,DZ (6 numbers), got '" +
-                                  f.axis + "'");
+      throw std::invalid_argument("--axis: expected PX,PY,PZ,DX,DY,DZ (6 numbers), got '" + f.axis +
+                                  "'");
     }
     o.axis_point_mm = Eigen::Vector3d(v[0], v[1], v[2]);
     o.axis_direction = Eigen::Vector3d(v[3], v[4], v[5]);

@@ -5,15 +5,15 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 #include <iostream>
-#include <nlohmann/json.hpp>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
 
 #include "apps/output.h"
-#include "estimation/accuracy_report.h"
-#include "hw/run_record.h"
+#include "hw/io/run_record.h"
 #include "imaging/io/em_log_import.h"
+#include "report/accuracy_report.h"
 
 namespace echoservo::apps {
 namespace {
@@ -59,8 +59,8 @@ Eigen::Isometry3d ParseTransform(const std::string& text) {
 }
 
 struct Produced {
-  estimation::AccuracyMetrics metrics;
-  estimation::AccuracyReportOptions options;
+  report::AccuracyMetrics metrics;
+  report::AccuracyReportOptions options;
   hw::EmLog em;
 };
 
@@ -80,7 +80,7 @@ Produced Produce(const ReportFlags& f) {
   io.sensor = f.sensor;
   const hw::EmLog em = imaging::ReadEmLog(em_path, io);
 
-  estimation::AccuracyOptions ao;
+  report::AccuracyOptions ao;
   ao.alignment.max_offset_s = f.max_offset_s;
   ao.alignment.offset_center_s = f.offset_center_s;
   if (!f.em_to_image.empty()) {
@@ -92,28 +92,29 @@ Produced Produce(const ReportFlags& f) {
     const auto meta = nlohmann::json::parse(run.info.metadata_json, nullptr, false);
     if (meta.is_object() && meta.contains("em_to_image")) {
       if (!meta["em_to_image"].is_string())
-        throw std::invalid_argument(f.run + "/run.json: key 'em_to_image' must be a string of 12 or 16 numbers");
+        throw std::invalid_argument(
+            f.run + "/run.json: key 'em_to_image' must be a string of 12 or 16 numbers");
       ao.alignment.em_to_image = ParseTransform(meta["em_to_image"].get<std::string>());
     }
   }
   ao.phase_bins = f.phase_bins;
   if (f.from_s) ao.from_s = *f.from_s;
-  const estimation::AccuracyMetrics m = estimation::ComputeAccuracy(run, em, ao);
+  const report::AccuracyMetrics m = report::ComputeAccuracy(run, em, ao);
 
-  estimation::AccuracyReportOptions ro;
+  report::AccuracyReportOptions ro;
   ro.run_path = f.run;
   ro.em_path = em_path;
-  WriteFileAtomically(f.out, estimation::RenderAccuracyReport(run, m, ro));
+  WriteFileAtomically(f.out, report::RenderAccuracyReport(run, m, ro));
   return {m, ro, em};
 }
 
 void RunReport(const ReportFlags& f) {
   const Produced p = Produce(f);
-  const estimation::AccuracyMetrics& m = p.metrics;
-  const estimation::AccuracyReportOptions& ro = p.options;
+  const report::AccuracyMetrics& m = p.metrics;
+  const report::AccuracyReportOptions& ro = p.options;
   const hw::EmLog& em = p.em;
   if (f.json) {
-    std::cout << estimation::AccuracyJson(m, ro) << "\n";
+    std::cout << report::AccuracyJson(m, ro) << "\n";
     return;
   }
   std::cout << "wrote " << f.out << "\n"
@@ -164,7 +165,8 @@ void AddReportCommand(CLI::App& app) {
                   "Half-width of the EM clock offset search, s (default 2)");
   cmd->add_option("--offset-center", f->offset_center_s,
                   "Centre of the offset search, s (default: first volume time − first EM time)");
-  cmd->add_option("--from", f->from_s, "Figures from this pipeline time on, s (the alignment uses the whole run)")
+  cmd->add_option("--from", f->from_s,
+                  "Figures from this pipeline time on, s (the alignment uses the whole run)")
       ->check(CLI::Range(-1e9, 1e9));
   cmd->add_option("--em-to-image", f->em_to_image,
                   "Known EM→image transform, 12 or 16 comma-separated numbers, row-major, mm: "

@@ -1,5 +1,5 @@
 // Registration of `echoservo report RUN`: the accuracy report of a tracking run against an
-// EM-tracker log (estimation/accuracy_report.h).
+// EM-tracker log (report/accuracy_report.h).
 #pragma once
 
 #include <string>

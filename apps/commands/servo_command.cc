@@ -7,7 +7,6 @@
 // timeline, time to the safe state after the tracker went away, and the tip's RMS error
 // to its setpoint while following.
 #include <CLI/CLI.hpp>
-
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -20,9 +19,9 @@
 
 #include "apps/commands/link_flags.h"
 #include "apps/commands/live_commands.h"
-#include "apps/live/pipeline_clock.h"
-#include "apps/live/servo_node.h"
-#include "apps/live/sim_catheter.h"
+#include "live/pipeline_clock.h"
+#include "live/servo_node.h"
+#include "live/sim_catheter.h"
 
 namespace echoservo::apps {
 namespace {
@@ -42,7 +41,8 @@ struct ServoArgs {
 nlohmann::json RejectionsJson(const link::RejectionCounters& c) {
   nlohmann::json j = nlohmann::json::object();
   for (int r = 0; r < static_cast<int>(link::Rejection::kCount); ++r)
-    if (c.rejected[r]) j[std::string(link::ToString(static_cast<link::Rejection>(r)))] = c.rejected[r];
+    if (c.rejected[r])
+      j[std::string(link::ToString(static_cast<link::Rejection>(r)))] = c.rejected[r];
   return j;
 }
 
@@ -60,10 +60,12 @@ void RunServo(const ServoArgs& a) {
   live::SimCatheter catheter = live::MakeSimCatheter(a.sheath_id_mm, a.guidewire_od_mm, a.seed);
   const live::PipelineClock clock(0.05);
   so.link_offset_s = clock.link_offset_s();
-  live::ServoNode node(*catheter.plant, catheter.servo, std::move(catheter.compensator), so, &participant);
+  live::ServoNode node(*catheter.plant, catheter.servo, std::move(catheter.compensator), so,
+                       &participant);
   InstallStopSignals();
   if (!a.json)
-    std::fprintf(stderr, "servo: 1 kHz on the simulated catheter, DDS domain %d; %s\n", a.link.domain,
+    std::fprintf(stderr, "servo: 1 kHz on the simulated catheter, DDS domain %d; %s\n",
+                 a.link.domain,
                  a.auto_enable ? "following the first estimate" : "waiting for an ENABLE command");
 
   const double period = catheter.servo.period_s;
@@ -85,15 +87,18 @@ void RunServo(const ServoArgs& a) {
     if (c.mode != mode || k == 0) {
       mode = c.mode;
       timeline.push_back({{"t_s", t}, {"mode", std::string(link::ToString(mode))}});
-      if (!a.json) std::fprintf(stderr, "servo: t %.3f s: %s\n", t, std::string(link::ToString(mode)).c_str());
+      if (!a.json)
+        std::fprintf(stderr, "servo: t %.3f s: %s\n", t, std::string(link::ToString(mode)).c_str());
     }
     if (node.tracker_gone() && !tracker_lost_s) tracker_lost_s = t;
-    if (tracker_lost_s && !safe_s && (mode == link::ServoMode::kRetracting || mode == link::ServoMode::kStopped))
+    if (tracker_lost_s && !safe_s &&
+        (mode == link::ServoMode::kRetracting || mode == link::ServoMode::kStopped))
       safe_s = t;
     if (mode == link::ServoMode::kTracking) {
       if (following_since < 0) following_since = t;
       if (t - following_since >= 1.0) {  // after the first second of following
-        err_sq += (c.record.tip_mm - c.record.reference_mm) * (c.record.tip_mm - c.record.reference_mm);
+        err_sq +=
+            (c.record.tip_mm - c.record.reference_mm) * (c.record.tip_mm - c.record.reference_mm);
         ++err_n;
       }
     } else {
@@ -117,19 +122,26 @@ void RunServo(const ServoArgs& a) {
       {"resumes", s.resumes},
       {"final_mode", std::string(link::ToString(mode))},
       {"timeline", timeline},
-      {"tracker_lost_s", tracker_lost_s ? nlohmann::json(*tracker_lost_s) : nlohmann::json(nullptr)},
-      {"safe_state_after_s",
-       tracker_lost_s && safe_s ? nlohmann::json(*safe_s - *tracker_lost_s) : nlohmann::json(nullptr)},
-      {"tip_to_setpoint_rms_mm", err_n ? nlohmann::json(std::sqrt(err_sq / static_cast<double>(err_n))) : nlohmann::json(nullptr)}};
+      {"tracker_lost_s",
+       tracker_lost_s ? nlohmann::json(*tracker_lost_s) : nlohmann::json(nullptr)},
+      {"safe_state_after_s", tracker_lost_s && safe_s ? nlohmann::json(*safe_s - *tracker_lost_s)
+                                                      : nlohmann::json(nullptr)},
+      {"tip_to_setpoint_rms_mm",
+       err_n ? nlohmann::json(std::sqrt(err_sq / static_cast<double>(err_n)))
+             : nlohmann::json(nullptr)}};
   if (a.json) {
     std::cout << j.dump(2) << "\n";
   } else {
-    std::printf("servo: %llu cycles (%llu overruns), estimates %llu accepted / %llu rejected, commands %llu, "
-                "limit violations %llu, final mode %s\n",
-                static_cast<unsigned long long>(s.cycles), static_cast<unsigned long long>(overruns),
-                static_cast<unsigned long long>(s.estimates_accepted), static_cast<unsigned long long>(s.estimates_rejected),
-                static_cast<unsigned long long>(s.commands_applied), static_cast<unsigned long long>(s.limit_violations),
-                std::string(link::ToString(mode)).c_str());
+    std::printf(
+        "servo: %llu cycles (%llu overruns), estimates %llu accepted / %llu rejected, commands "
+        "%llu, "
+        "limit violations %llu, final mode %s\n",
+        static_cast<unsigned long long>(s.cycles), static_cast<unsigned long long>(overruns),
+        static_cast<unsigned long long>(s.estimates_accepted),
+        static_cast<unsigned long long>(s.estimates_rejected),
+        static_cast<unsigned long long>(s.commands_applied),
+        static_cast<unsigned long long>(s.limit_violations),
+        std::string(link::ToString(mode)).c_str());
   }
 }
 
@@ -137,20 +149,28 @@ void RunServo(const ServoArgs& a) {
 
 void AddServoCommand(CLI::App& app) {
   auto a = std::make_shared<ServoArgs>();
-  CLI::App* cmd = app.add_subcommand(
-      "servo", "servo process: target estimates and commands over DDS → 1 kHz control of the simulated catheter → state");
+  CLI::App* cmd = app.add_subcommand("servo",
+                                     "servo process: target estimates and commands over DDS → 1 "
+                                     "kHz control of the simulated catheter → state");
   AddLinkFlags(*cmd, a->link);
-  cmd->add_option("--duration", a->duration_s, "run length, s (0: until SIGINT/SIGTERM)")->check(CLI::Range(0.0, 86400.0));
-  cmd->add_option("--standoff", a->standoff_mm, "tip-to-target standoff along the axis until a command sets it, mm")
+  cmd->add_option("--duration", a->duration_s, "run length, s (0: until SIGINT/SIGTERM)")
+      ->check(CLI::Range(0.0, 86400.0));
+  cmd->add_option("--standoff", a->standoff_mm,
+                  "tip-to-target standoff along the axis until a command sets it, mm")
       ->check(CLI::Range(0.0, 30.0));
-  cmd->add_flag("--auto-enable", a->auto_enable,
-                "follow the first valid estimate and resume after a retraction (default: wait for ENABLE)");
+  cmd->add_flag(
+      "--auto-enable", a->auto_enable,
+      "follow the first valid estimate and resume after a retraction (default: wait for ENABLE)");
   cmd->add_option("--sheath-id", a->sheath_id_mm, "simulated catheter's sheath inner diameter, mm");
-  cmd->add_option("--guidewire-od", a->guidewire_od_mm, "simulated catheter's guidewire outer diameter, mm");
+  cmd->add_option("--guidewire-od", a->guidewire_od_mm,
+                  "simulated catheter's guidewire outer diameter, mm");
   cmd->add_option("--seed", a->seed, "simulated catheter's calibration seed");
-  cmd->add_option("--state-rate", a->state_rate_hz, "catheter state publication rate, Hz")->check(CLI::Range(1.0, 1000.0));
-  cmd->add_option("--stale-after", a->stale_after_s, "hold when the newest estimate is older, s")->check(CLI::Range(0.01, 5.0));
-  cmd->add_option("--retract-after", a->retract_after_s, "retract after holding this long, s")->check(CLI::Range(0.0, 30.0));
+  cmd->add_option("--state-rate", a->state_rate_hz, "catheter state publication rate, Hz")
+      ->check(CLI::Range(1.0, 1000.0));
+  cmd->add_option("--stale-after", a->stale_after_s, "hold when the newest estimate is older, s")
+      ->check(CLI::Range(0.01, 5.0));
+  cmd->add_option("--retract-after", a->retract_after_s, "retract after holding this long, s")
+      ->check(CLI::Range(0.0, 30.0));
   cmd->add_flag("--json", a->json, "print the summary as JSON");
   cmd->callback([a] { RunServo(*a); });
 }

@@ -15,7 +15,6 @@
 // recorded run's heart rate, standoff and EM calibration are carried over); with
 // --save-volumes (live sources) also the received volumes, as they come (RUN/volumes.igs.mhd).
 #include <CLI/CLI.hpp>
-
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -27,15 +26,15 @@
 
 #include "apps/commands/link_flags.h"
 #include "apps/commands/live_commands.h"
-#include "apps/live/delayed_scanner.h"
-#include "apps/live/pipeline_clock.h"
-#include "apps/live/sim_scene.h"
-#include "apps/live/tracker_node.h"
-#include "hw/run_record.h"
+#include "hw/io/run_record.h"
 #include "imaging/igtl/ingest.h"
 #include "imaging/io/recording.h"
 #include "imaging/io/sequence_writer.h"
 #include "link/clock.h"
+#include "live/delayed_scanner.h"
+#include "live/pipeline_clock.h"
+#include "live/sim_scene.h"
+#include "live/tracker_node.h"
 
 namespace echoservo::apps {
 namespace {
@@ -56,7 +55,8 @@ struct TrackArgs {
   int max_harmonics = 8;
   double init_window_s = 2.0;
   // --sim
-  double rate_hz = 25.0, delay_min_s = 0.05, delay_max_s = 0.10, heart_rate_bpm = 60.0, target_p2p_mm = 10.0;
+  double rate_hz = 25.0, delay_min_s = 0.05, delay_max_s = 0.10, heart_rate_bpm = 60.0,
+         target_p2p_mm = 10.0;
   std::uint64_t seed = 1;
 };
 
@@ -78,11 +78,16 @@ hw::RunInfo ReplayInfo(const fs::path& file) {
 
 void RunTrack(const TrackArgs& a) {
   const int sources = (a.sim ? 1 : 0) + (a.connect.empty() ? 0 : 1) + (a.replay.empty() ? 0 : 1);
-  if (sources != 1) throw std::invalid_argument("track: give exactly one of --sim, --connect HOST:PORT, --replay FILE");
-  if (a.sim && a.duration_s <= 0) throw std::invalid_argument("track --sim: --duration S is required");
+  if (sources != 1)
+    throw std::invalid_argument(
+        "track: give exactly one of --sim, --connect HOST:PORT, --replay FILE");
+  if (a.sim && a.duration_s <= 0)
+    throw std::invalid_argument("track --sim: --duration S is required");
   const bool replay = !a.replay.empty();
-  if (a.save_volumes && a.out.empty()) throw std::invalid_argument("track --save-volumes: needs --out RUN");
-  if (a.save_volumes && replay) throw std::invalid_argument("track --save-volumes: a replay is recorded already");
+  if (a.save_volumes && a.out.empty())
+    throw std::invalid_argument("track --save-volumes: needs --out RUN");
+  if (a.save_volumes && replay)
+    throw std::invalid_argument("track --save-volumes: a replay is recorded already");
 
   live::TrackerNodeOptions to;
   to.ekf.harmonics = a.harmonics;
@@ -95,16 +100,20 @@ void RunTrack(const TrackArgs& a) {
       info = ReplayInfo(a.replay);
     } else {
       info.heart_rate_hz = a.sim ? std::optional<double>(a.heart_rate_bpm / 60.0) : std::nullopt;
-      info.metadata_json = nlohmann::json{{"source", a.sim ? "echoservo track --sim" : "echoservo track --connect"}}.dump();
+      info.metadata_json =
+          nlohmann::json{{"source", a.sim ? "echoservo track --sim" : "echoservo track --connect"}}
+              .dump();
     }
     writer = std::make_unique<hw::RunWriter>(a.out, info);
   }
   std::unique_ptr<imaging::SequenceWriter> recorder;
-  if (a.save_volumes) recorder = std::make_unique<imaging::SequenceWriter>(fs::path(a.out) / "volumes.igs.mhd");
+  if (a.save_volumes)
+    recorder = std::make_unique<imaging::SequenceWriter>(fs::path(a.out) / "volumes.igs.mhd");
   std::unique_ptr<link::Participant> participant;
   std::unique_ptr<link::TargetPublisher> publisher;
   if (!replay) {
-    participant = std::make_unique<link::Participant>(ToParticipantOptions(a.link, "echoservo_tracker", "tracker"));
+    participant = std::make_unique<link::Participant>(
+        ToParticipantOptions(a.link, "echoservo_tracker", "tracker"));
     publisher = std::make_unique<link::TargetPublisher>(*participant);
   }
   InstallStopSignals();
@@ -124,8 +133,8 @@ void RunTrack(const TrackArgs& a) {
       if (!f) break;
       const double t = f->volume.timestamp_s();
       if (!(t > last)) {  // the EKF needs increasing acquisition times
-        std::fprintf(stderr, "track: %s frame %lld: timestamp %.6f s does not increase; skipped\n", a.replay.c_str(),
-                     static_cast<long long>(f->volume.frame_index()), t);
+        std::fprintf(stderr, "track: %s frame %lld: timestamp %.6f s does not increase; skipped\n",
+                     a.replay.c_str(), static_cast<long long>(f->volume.frame_index()), t);
         ++dropped;
         continue;
       }
@@ -139,10 +148,12 @@ void RunTrack(const TrackArgs& a) {
     live::SimScene scene({a.rate_hz, a.heart_rate_bpm, a.target_p2p_mm, 8.0, a.seed});
     // The servo's tip moves the catheter in the scene.
     const double offset = clock.link_offset_s();
-    link::StateSubscriber state(*participant, {}, [&scene, offset](const link::CatheterStateSample& s, double) {
-      scene.SetPlantTip(s.stamp_s - offset, s.tip_estimate_mm);
-    });
-    live::DelayedScanner scanner(scene, clock, {a.rate_hz, a.delay_min_s, a.delay_max_s, a.duration_s, a.seed});
+    link::StateSubscriber state(*participant, {},
+                                [&scene, offset](const link::CatheterStateSample& s, double) {
+                                  scene.SetPlantTip(s.stamp_s - offset, s.tip_estimate_mm);
+                                });
+    live::DelayedScanner scanner(scene, clock,
+                                 {a.rate_hz, a.delay_min_s, a.delay_max_s, a.duration_s, a.seed});
     while (!StopRequested()) {
       std::optional<live::Delivery> d = scanner.Next(0.05);
       if (!d) {
@@ -150,7 +161,8 @@ void RunTrack(const TrackArgs& a) {
         continue;
       }
       const double arrived = clock.Now();
-      report_error(node->Process(d->volume, d->acquired_s, arrived, [&clock] { return clock.Now(); }));
+      report_error(
+          node->Process(d->volume, d->acquired_s, arrived, [&clock] { return clock.Now(); }));
     }
     scanner.Stop();
     missed = scanner.missed();
@@ -158,7 +170,8 @@ void RunTrack(const TrackArgs& a) {
   } else {
     node.emplace(to, publisher.get(), writer.get(), recorder.get());
     const auto colon = a.connect.rfind(':');
-    if (colon == std::string::npos) throw std::invalid_argument("track --connect: expected HOST:PORT, got '" + a.connect + "'");
+    if (colon == std::string::npos)
+      throw std::invalid_argument("track --connect: expected HOST:PORT, got '" + a.connect + "'");
     imaging::openigtlink::IngestOptions io;
     io.host = a.connect.substr(0, colon);
     try {
@@ -170,11 +183,13 @@ void RunTrack(const TrackArgs& a) {
     imaging::openigtlink::IngestClient client(io);
     client.Start();
     const double start = link::NowS();
-    while (!StopRequested() && (a.duration_s <= 0 || link::NowS() - start < a.duration_s) && !client.ended()) {
+    while (!StopRequested() && (a.duration_s <= 0 || link::NowS() - start < a.duration_s) &&
+           !client.ended()) {
       std::optional<imaging::openigtlink::IngestedFrame> f = client.NextFrame(0.1);
       if (!f) continue;
       const double acquired = f->latency_ms ? f->frame.volume.timestamp_s() : f->arrival_s;
-      report_error(node->Process(f->frame.volume, acquired, f->arrival_s, [] { return link::NowS(); }));
+      report_error(
+          node->Process(f->frame.volume, acquired, f->arrival_s, [] { return link::NowS(); }));
     }
     client.Stop();
     const imaging::openigtlink::IngestStats is = client.stats();
@@ -185,7 +200,8 @@ void RunTrack(const TrackArgs& a) {
               {"rejected", is.rejected},
               {"rejected_by_reason", is.rejected_by_reason}};
     for (const auto& [reason, n] : is.rejected_by_reason)
-      std::fprintf(stderr, "track: ingest rejected %lld message(s): %s\n", static_cast<long long>(n), reason.c_str());
+      std::fprintf(stderr, "track: ingest rejected %lld message(s): %s\n",
+                   static_cast<long long>(n), reason.c_str());
   }
   if (writer) writer->Flush();
   if (recorder) recorder->SyncData();
@@ -204,14 +220,17 @@ void RunTrack(const TrackArgs& a) {
                                 {"ingest", ingest},
                                 {"ekf_harmonics", node->ekf().harmonics()},
                                 {"ekf_rate_hz", node->ekf().rate_hz()},
-                                {"run_dir", a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}}
+                                {"run_dir",
+                                 a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}}
                      .dump(2)
               << "\n";
   } else {
-    std::printf("track: %llu volumes, %llu with catheter and target, %llu published, %llu errors; EKF %d harmonics at %.3f Hz\n",
-                static_cast<unsigned long long>(s.volumes), static_cast<unsigned long long>(s.measured),
-                static_cast<unsigned long long>(s.published), static_cast<unsigned long long>(s.errors),
-                node->ekf().harmonics(), node->ekf().rate_hz());
+    std::printf(
+        "track: %llu volumes, %llu with catheter and target, %llu published, %llu errors; EKF %d "
+        "harmonics at %.3f Hz\n",
+        static_cast<unsigned long long>(s.volumes), static_cast<unsigned long long>(s.measured),
+        static_cast<unsigned long long>(s.published), static_cast<unsigned long long>(s.errors),
+        node->ekf().harmonics(), node->ekf().rate_hz());
   }
 }
 
@@ -219,23 +238,35 @@ void RunTrack(const TrackArgs& a) {
 
 void AddTrackCommand(CLI::App& app) {
   auto a = std::make_shared<TrackArgs>();
-  CLI::App* cmd = app.add_subcommand("track", "tracker process: volumes → detector → heartbeat EKF → target estimates over DDS");
-  cmd->add_flag("--sim", a->sim, "the embedded simulated scanner, its catheter moved by the servo's reported tip");
+  CLI::App* cmd = app.add_subcommand(
+      "track", "tracker process: volumes → detector → heartbeat EKF → target estimates over DDS");
+  cmd->add_flag("--sim", a->sim,
+                "the embedded simulated scanner, its catheter moved by the servo's reported tip");
   cmd->add_option("--connect", a->connect, "HOST:PORT of an OpenIGTLink scanner stream");
-  cmd->add_option("--replay", a->replay, "a recording (PLUS sequence, volume file or folder), processed offline");
-  cmd->add_option("--duration", a->duration_s, "run length, s (0: until the stream ends or SIGINT)")->check(CLI::Range(0.0, 86400.0));
+  cmd->add_option("--replay", a->replay,
+                  "a recording (PLUS sequence, volume file or folder), processed offline");
+  cmd->add_option("--duration", a->duration_s, "run length, s (0: until the stream ends or SIGINT)")
+      ->check(CLI::Range(0.0, 86400.0));
   cmd->add_option("--out", a->out, "write a RUN directory (targets.csv, run.json)");
   cmd->add_flag("--save-volumes", a->save_volumes,
-                "--sim/--connect: also record the received volumes to RUN/volumes.igs.mhd (+ .raw), each as it is "
+                "--sim/--connect: also record the received volumes to RUN/volumes.igs.mhd (+ "
+                ".raw), each as it is "
                 "processed, for --replay");
-  cmd->add_option("--harmonics", a->harmonics, "EKF harmonics (0: automatic)")->check(CLI::Range(0, 12));
-  cmd->add_option("--max-harmonics", a->max_harmonics, "EKF automatic harmonics up to")->check(CLI::Range(1, 12));
-  cmd->add_option("--init-window", a->init_window_s, "EKF initial window, s")->check(CLI::Range(1.0, 30.0));
+  cmd->add_option("--harmonics", a->harmonics, "EKF harmonics (0: automatic)")
+      ->check(CLI::Range(0, 12));
+  cmd->add_option("--max-harmonics", a->max_harmonics, "EKF automatic harmonics up to")
+      ->check(CLI::Range(1, 12));
+  cmd->add_option("--init-window", a->init_window_s, "EKF initial window, s")
+      ->check(CLI::Range(1.0, 30.0));
   cmd->add_option("--rate", a->rate_hz, "--sim: volume rate, vol/s")->check(CLI::Range(1.0, 60.0));
-  cmd->add_option("--delay-min", a->delay_min_s, "--sim: imaging delay, lower end, s")->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--delay-max", a->delay_max_s, "--sim: imaging delay, upper end, s")->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--heart-rate", a->heart_rate_bpm, "--sim: target heart rate, bpm")->check(CLI::Range(30.0, 180.0));
-  cmd->add_option("--target-p2p", a->target_p2p_mm, "--sim: target excursion, mm")->check(CLI::Range(0.1, 20.0));
+  cmd->add_option("--delay-min", a->delay_min_s, "--sim: imaging delay, lower end, s")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--delay-max", a->delay_max_s, "--sim: imaging delay, upper end, s")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--heart-rate", a->heart_rate_bpm, "--sim: target heart rate, bpm")
+      ->check(CLI::Range(30.0, 180.0));
+  cmd->add_option("--target-p2p", a->target_p2p_mm, "--sim: target excursion, mm")
+      ->check(CLI::Range(0.1, 20.0));
   cmd->add_option("--seed", a->seed, "--sim: simulation seed");
   AddLinkFlags(*cmd, a->link);
   cmd->add_flag("--json", a->json, "print the summary as JSON");

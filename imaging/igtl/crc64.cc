@@ -49,9 +49,8 @@ std::uint64_t Crc64Ecma182(std::span<const std::uint8_t> data, std::uint64_t crc
   const auto& t = kTables;
   while (n >= 8) {
     const std::uint64_t c = crc ^ LoadBigEndian64(p);
-    crc = t[7][c >> 56] ^ t[6][(c >> 48) & 0xFF] ^ t[5][(c >> 40) & 0xFF] ^
-          t[4][(c >> 32) & 0xFF] ^ t[3][(c >> 24) & 0xFF] ^ t[2][(c >> 16) & 0xFF] ^
-          t[1][(c >> 8) & 0xFF] ^ t[0][c & 0xFF];
+    crc = t[7][c >> 56] ^ t[6][(c >> 48) & 0xFF] ^ t[5][(c >> 40) & 0xFF] ^ t[4][(c >> 32) & 0xFF] ^
+          t[3][(c >> 24) & 0xFF] ^ t[2][(c >> 16) & 0xFF] ^ t[1][(c >> 8) & 0xFF] ^ t[0][c & 0xFF];
     p += 8;
     n -= 8;
   }

@@ -5,6 +5,7 @@
 #include <igtl_image.h>
 
 #include <Eigen/SVD>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 
@@ -42,7 +43,8 @@ void CheckCrc(const MessageHeader& header, std::uint64_t crc) {
   if (crc != header.crc) {
     char buf[96];
     std::snprintf(buf, sizeof buf, "body CRC-64 %016llx, header says %016llx",
-                  static_cast<unsigned long long>(crc), static_cast<unsigned long long>(header.crc));
+                  static_cast<unsigned long long>(crc),
+                  static_cast<unsigned long long>(header.crc));
     throw MessageError("bad_crc", buf);
   }
 }
@@ -73,8 +75,8 @@ double IgtlTimestampToSeconds(std::uint64_t timestamp) {
 
 MessageHeader ParseHeader(std::span<const std::uint8_t> bytes, const DecodeLimits& limits) {
   if (bytes.size() < kHeaderBytes) {
-    throw MessageError("truncated_message", "header has " + std::to_string(bytes.size()) +
-                                                " of 58 bytes");
+    throw MessageError("truncated_message",
+                       "header has " + std::to_string(bytes.size()) + " of 58 bytes");
   }
   igtl_header h;
   std::memcpy(&h, bytes.data(), kHeaderBytes);
@@ -82,8 +84,8 @@ MessageHeader ParseHeader(std::span<const std::uint8_t> bytes, const DecodeLimit
   MessageHeader out;
   out.version = h.version;
   if (h.version != 1 && h.version != 2) {
-    throw MessageError("bad_header", "header version " + std::to_string(h.version) +
-                                         " (expected 1 or 2)");
+    throw MessageError("bad_header",
+                       "header version " + std::to_string(h.version) + " (expected 1 or 2)");
   }
   if (!ParseName(h.name, IGTL_HEADER_TYPE_SIZE, false, out.type)) {
     throw MessageError("bad_header", "message type is not NUL-padded printable ASCII");
@@ -105,9 +107,9 @@ MessageHeader ParseHeader(std::span<const std::uint8_t> bytes, const DecodeLimit
 ImageHeader ParseImageHeader(const MessageHeader& header, std::span<const std::uint8_t> bytes,
                              const DecodeLimits& limits) {
   if (header.version != 1) {
-    throw MessageError("unsupported_header_version",
-                       "IMAGE with header version " + std::to_string(header.version) +
-                           " (only 1 is supported)");
+    throw MessageError(
+        "unsupported_header_version",
+        "IMAGE with header version " + std::to_string(header.version) + " (only 1 is supported)");
   }
   if (header.body_size < kImageHeaderBytes || bytes.size() < kImageHeaderBytes) {
     throw MessageError("bad_image_header", "IMAGE body of " + std::to_string(header.body_size) +
@@ -145,9 +147,9 @@ ImageHeader ParseImageHeader(const MessageHeader& header, std::span<const std::u
   }
   const std::uint64_t expected = kImageHeaderBytes + static_cast<std::uint64_t>(voxels);
   if (header.body_size != expected) {
-    throw MessageError("body_size_mismatch",
-                       "body_size " + std::to_string(header.body_size) + " != 72 + " +
-                           std::to_string(voxels) + " voxels x 1 byte");
+    throw MessageError("body_size_mismatch", "body_size " + std::to_string(header.body_size) +
+                                                 " != 72 + " + std::to_string(voxels) +
+                                                 " voxels x 1 byte");
   }
   for (int a = 0; a < 3; ++a) {
     if (ih.subvol_offset[a] != 0 || ih.subvol_size[a] != ih.size[a]) {
@@ -162,7 +164,8 @@ ImageHeader ParseImageHeader(const MessageHeader& header, std::span<const std::u
   const Eigen::Matrix3d flip = FrameFlip(out.coordinate_system);
   Eigen::Matrix3d scaled;  // columns: direction · spacing, in LPS
   for (int c = 0; c < 3; ++c) {
-    scaled.col(c) = flip * Eigen::Vector3d(ih.matrix[3 * c], ih.matrix[3 * c + 1], ih.matrix[3 * c + 2]);
+    scaled.col(c) =
+        flip * Eigen::Vector3d(ih.matrix[3 * c], ih.matrix[3 * c + 1], ih.matrix[3 * c + 2]);
   }
   out.center_mm = Eigen::Vector3d(ih.matrix[9], ih.matrix[10], ih.matrix[11]);
   VolumeGeometry& g = out.geometry;
@@ -170,7 +173,8 @@ ImageHeader ParseImageHeader(const MessageHeader& header, std::span<const std::u
   for (int c = 0; c < 3; ++c) {
     const double s = scaled.col(c).norm();
     if (!std::isfinite(s) || s <= 0.0) {
-      throw MessageError("bad_geometry", "axis " + std::to_string(c) + " has zero or non-finite spacing");
+      throw MessageError("bad_geometry",
+                         "axis " + std::to_string(c) + " has zero or non-finite spacing");
     }
     g.spacing_mm[c] = s;
     g.direction.col(c) = scaled.col(c) / s;
@@ -179,7 +183,8 @@ ImageHeader ParseImageHeader(const MessageHeader& header, std::span<const std::u
       (g.direction.transpose() * g.direction - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
   if (!(err <= VolumeGeometry::kOrthonormalTolerance)) {
     if (!(err <= limits.orthonormalize_tolerance)) {
-      throw MessageError("bad_geometry", "axes are not orthonormal (error " + std::to_string(err) + ")");
+      throw MessageError("bad_geometry",
+                         "axes are not orthonormal (error " + std::to_string(err) + ")");
     }
     Eigen::JacobiSVD<Eigen::Matrix3d> svd(g.direction, Eigen::ComputeFullU | Eigen::ComputeFullV);
     g.direction = svd.matrixU() * svd.matrixV().transpose();
@@ -234,7 +239,8 @@ std::array<float, 12> ImageMatrix(const VolumeGeometry& g, CoordinateSystem cs) 
     for (int r = 0; r < 3; ++r) m[3 * c + r] = static_cast<float>(col[r]);
   }
   const Eigen::Vector3d half = (g.dims.cast<double>() - Eigen::Vector3d::Ones()) / 2.0;
-  const Eigen::Vector3d center = flip * (g.origin_mm + g.direction * half.cwiseProduct(g.spacing_mm));
+  const Eigen::Vector3d center =
+      flip * (g.origin_mm + g.direction * half.cwiseProduct(g.spacing_mm));
   for (int r = 0; r < 3; ++r) m[9 + r] = static_cast<float>(center[r]);
   return m;
 }
@@ -252,15 +258,16 @@ void CheckEncodable(const Volume& volume, const EncodeOptions& options) {
   }
   for (int a = 0; a < 3; ++a) {
     if (volume.dims()[a] > 65535) {
-      throw std::invalid_argument("OpenIGTLink IMAGE: dimension " + std::to_string(volume.dims()[a]) +
-                                  " exceeds 65535");
+      throw std::invalid_argument("OpenIGTLink IMAGE: dimension " +
+                                  std::to_string(volume.dims()[a]) + " exceeds 65535");
     }
   }
 }
 
 }  // namespace
 
-void EncodeImage(const Volume& volume, const EncodeOptions& options, std::vector<std::uint8_t>& out) {
+void EncodeImage(const Volume& volume, const EncodeOptions& options,
+                 std::vector<std::uint8_t>& out) {
   CheckEncodable(volume, options);
   out.resize(EncodedImageSize(volume));
   std::uint8_t* body = out.data() + kHeaderBytes;
@@ -306,7 +313,8 @@ std::vector<std::uint8_t> EncodeImageLibIgtl(const Volume& volume, const EncodeO
   auto msg = ::igtl::ImageMessage::New();
   msg->SetDeviceName(options.device_name.c_str());
   const std::uint64_t ts = SecondsToIgtlTimestamp(volume.timestamp_s());
-  msg->SetTimeStamp(static_cast<unsigned int>(ts >> 32), static_cast<unsigned int>(ts & 0xFFFFFFFFULL));
+  msg->SetTimeStamp(static_cast<unsigned int>(ts >> 32),
+                    static_cast<unsigned int>(ts & 0xFFFFFFFFULL));
   msg->SetDimensions(g.dims.x(), g.dims.y(), g.dims.z());
   msg->SetScalarType(::igtl::ImageMessage::TYPE_UINT8);
   msg->SetNumComponents(1);
@@ -330,6 +338,10 @@ std::vector<std::uint8_t> EncodeImageLibIgtl(const Volume& volume, const EncodeO
   msg->Pack();
   const auto* p = static_cast<const std::uint8_t*>(msg->GetPackPointer());
   return std::vector<std::uint8_t>(p, p + msg->GetPackSize());
+}
+
+double WallClockSeconds() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
 }  // namespace echoservo::imaging::openigtlink

@@ -1,28 +1,15 @@
 // OpenIGTLink IMAGE messages <-> imaging::Volume, and validation of untrusted bytes.
 //
-// Wire format (OpenIGTLink 1.11: header version 1, version-2 message set): a 58-byte
-// big-endian header (version, type name[12], device name[20], timestamp, body size,
-// CRC-64 of the body), then the body. An IMAGE body is a 72-byte image header (version 1,
-// components, scalar type, endian, coordinate system, size[3], a 3×4 float32 matrix,
-// sub-volume offset[3] and size[3]) followed by the voxels, i fastest.
-//
-// Frames and the matrix. echoservo's image frame (volume.h) is the MetaImage/ITK physical
-// space, which is LPS (+x = patient left, +y = posterior, +z = superior), in mm. The IMAGE
-// matrix holds, in the coordinate system the message names (RAS = 1, LPS = 2):
-//     matrix[0..2] = direction·e_i · spacing_i   (column i of direction · diag(spacing))
-//     matrix[3..5] = direction·e_j · spacing_j,  matrix[6..8] = direction·e_k · spacing_k
-//     matrix[9..11] = the image CENTRE, origin + direction · ((dims − 1)/2 ⊙ spacing)
-// i.e. OpenIGTLink's origin is the centre of the volume (as 3D Slicer's OpenIGTLinkIF and
-// PLUS read it), not voxel (0,0,0) as in MetaImage. RAS ↔ LPS flips the signs of x and y.
-// We encode RAS by default (igtl::ImageMessage's and Slicer's default) and decode either.
-// Only uint8, 1 component, full volumes (sub-volume = whole volume) are accepted.
-//
-// Time. The header timestamp is 32.32 fixed point: seconds in the high 32 bits, 2⁻³² s
-// fractions in the low 32 bits; Volume::timestamp_s maps to it directly (no epoch shift).
-//
-// Errors. Every rejection throws MessageError with a stable machine-readable reason()
-// (listed below) used as the key of the ingest's rejection counters. Nothing is allocated
-// from header fields before they pass the limits in DecodeLimits.
+// Wire: OpenIGTLink 1.11 (header version 1, version-2 message set), 58-byte big-endian header,
+// 72-byte image header, voxels i fastest. Frames: our image frame is LPS in mm; the 3×4 IMAGE
+// matrix holds the axes × spacing and the volume's CENTRE (not voxel 0), in RAS (encoded by
+// default) or LPS.
+// Time: 32.32 fixed-point s = Volume::timestamp_s, no epoch shift. Only uint8, 1 component,
+// full volumes are accepted.
+// Errors: every rejection throws MessageError with a stable reason() (listed below), the key
+// of the ingest's rejection counters; nothing is allocated from header fields before they
+// pass DecodeLimits.
+// Details: docs/openigtlink.md#the-image-codec-imagingigtlimage_messageh
 #pragma once
 
 #include <Eigen/Core>
@@ -66,7 +53,7 @@ class MessageError : public std::runtime_error {
 };
 
 struct DecodeLimits {
-  std::int64_t max_voxels = 64LL << 20;         // dims product of an IMAGE (64 Mi voxels)
+  std::int64_t max_voxels = 64LL << 20;                 // dims product of an IMAGE (64 Mi voxels)
   std::uint64_t max_body_bytes = (64ULL << 20) + 4096;  // any message type
   bool verify_crc = true;
   // Axes whose float32 orthonormality error lies in (1e-6, this] are re-orthonormalised
@@ -78,7 +65,7 @@ enum class CoordinateSystem : std::uint8_t { kRas = 1, kLps = 2 };
 
 struct MessageHeader {
   std::uint16_t version = 1;
-  std::string type;         // "IMAGE", "STATUS", ... (NUL padding removed)
+  std::string type;  // "IMAGE", "STATUS", ... (NUL padding removed)
   std::string device_name;
   std::uint64_t timestamp = 0;  // raw 32.32 fixed point
   std::uint64_t body_size = 0;
@@ -94,11 +81,11 @@ double IgtlTimestampToSeconds(std::uint64_t timestamp);
 // A validated IMAGE body header.
 struct ImageHeader {
   CoordinateSystem coordinate_system = CoordinateSystem::kRas;
-  std::array<float, 12> matrix{};      // as on the wire (host byte order)
-  Eigen::Vector3d center_mm;           // matrix[9..11], in the message's coordinate system
-  VolumeGeometry geometry;             // echoservo image frame (LPS), origin at voxel 0
-  bool orthonormalized = false;        // axes were re-orthonormalised (see DecodeLimits)
-  std::uint64_t voxel_bytes = 0;       // dims product × 1
+  std::array<float, 12> matrix{};  // as on the wire (host byte order)
+  Eigen::Vector3d center_mm;       // matrix[9..11], in the message's coordinate system
+  VolumeGeometry geometry;         // echoservo image frame (LPS), origin at voxel 0
+  bool orthonormalized = false;    // axes were re-orthonormalised (see DecodeLimits)
+  std::uint64_t voxel_bytes = 0;   // dims product × 1
 };
 
 // Parses and checks the 58 header bytes (`bytes` must hold at least 58). Throws
@@ -134,13 +121,19 @@ struct EncodeOptions {
 std::size_t EncodedImageSize(const Volume& volume);
 // Encodes `volume` as an IMAGE message into `out` (resized; reuse it to avoid allocation).
 // Throws std::invalid_argument if a dim exceeds 65535 or the device name is too long.
-void EncodeImage(const Volume& volume, const EncodeOptions& options, std::vector<std::uint8_t>& out);
+void EncodeImage(const Volume& volume, const EncodeOptions& options,
+                 std::vector<std::uint8_t>& out);
 std::vector<std::uint8_t> EncodeImage(const Volume& volume, const EncodeOptions& options = {});
 // The same message built by libOpenIGTLink (igtl::ImageMessage::Pack): the reference for
 // conformance tests and the benchmark.
-std::vector<std::uint8_t> EncodeImageLibIgtl(const Volume& volume, const EncodeOptions& options = {});
+std::vector<std::uint8_t> EncodeImageLibIgtl(const Volume& volume,
+                                             const EncodeOptions& options = {});
 
 // The volume's wire matrix (12 floats, see above) in `coordinate_system`.
-std::array<float, 12> ImageMatrix(const VolumeGeometry& geometry, CoordinateSystem coordinate_system);
+std::array<float, 12> ImageMatrix(const VolumeGeometry& geometry,
+                                  CoordinateSystem coordinate_system);
+
+// Seconds since the Unix epoch on the system clock: the clock OpenIGTLink timestamps use.
+double WallClockSeconds();
 
 }  // namespace echoservo::imaging::openigtlink

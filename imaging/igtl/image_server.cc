@@ -13,13 +13,7 @@ struct ImageServer::Client {
   tcp::Fd fd;
 };
 
-namespace {
-
-double WallClockSeconds() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
-}  // namespace
+namespace {}  // namespace
 
 ImageServer::ImageServer(VolumeSource& source, ImageServerOptions options)
     : source_(source), options_(std::move(options)) {}
@@ -87,9 +81,10 @@ void ImageServer::StreamLoop() {
   using Clock = std::chrono::steady_clock;
   const auto start = Clock::now();
   auto next_time = start;
-  const auto period = rate > 0.0 ? std::chrono::duration_cast<Clock::duration>(
-                                       std::chrono::duration<double>(1.0 / rate))
-                                 : Clock::duration::zero();
+  const auto period =
+      rate > 0.0
+          ? std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / rate))
+          : Clock::duration::zero();
   std::vector<std::uint8_t> buffer;
   double encode_ms_total = 0.0;
   std::int64_t frames = 0;

@@ -37,20 +37,20 @@ struct ImageServerOptions {
   enum class Timestamps { kSource, kSendTime };
   Timestamps timestamps = Timestamps::kSource;
   EncodeOptions encode;
-  int min_clients = 1;            // pull no frame before this many clients are connected
-  std::int64_t max_frames = -1;   // < 0: until the source ends
-  double max_duration_s = 0;      // > 0: stop streaming after this long
-  int send_timeout_ms = 2000;     // a client accepting no byte for this long is dropped
+  int min_clients = 1;           // pull no frame before this many clients are connected
+  std::int64_t max_frames = -1;  // < 0: until the source ends
+  double max_duration_s = 0;     // > 0: stop streaming after this long
+  int send_timeout_ms = 2000;    // a client accepting no byte for this long is dropped
 };
 
 struct ImageServerStats {
-  std::int64_t frames_sent = 0;        // frames pulled from the source and broadcast
-  std::int64_t messages_written = 0;   // frames × clients that got them whole
+  std::int64_t frames_sent = 0;       // frames pulled from the source and broadcast
+  std::int64_t messages_written = 0;  // frames × clients that got them whole
   std::int64_t bytes_written = 0;
   std::int64_t clients_accepted = 0;
-  std::int64_t clients_dropped = 0;    // closed, failed or stalled
+  std::int64_t clients_dropped = 0;  // closed, failed or stalled
   int clients_now = 0;
-  double encode_ms_mean = 0;           // encode + CRC per frame
+  double encode_ms_mean = 0;  // encode + CRC per frame
 };
 
 class ImageServer {

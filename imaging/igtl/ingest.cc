@@ -13,10 +13,6 @@ namespace {
 
 using Steady = std::chrono::steady_clock;
 
-double WallClockSeconds() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
 double MsSince(Steady::time_point t) {
   return std::chrono::duration<double, std::milli>(Steady::now() - t).count();
 }
@@ -53,10 +49,13 @@ IngestClient::~IngestClient() { Stop(); }
 
 void IngestClient::Start() {
   if (options_.port < 1 || options_.port > 65535) {
-    throw std::invalid_argument("ingest: port " + std::to_string(options_.port) + " is not in 1..65535");
+    throw std::invalid_argument("ingest: port " + std::to_string(options_.port) +
+                                " is not in 1..65535");
   }
-  if (options_.queue_capacity < 1) throw std::invalid_argument("ingest: queue_capacity must be >= 1");
-  if (!(options_.reconnect_initial_s > 0) || options_.reconnect_max_s < options_.reconnect_initial_s) {
+  if (options_.queue_capacity < 1)
+    throw std::invalid_argument("ingest: queue_capacity must be >= 1");
+  if (!(options_.reconnect_initial_s > 0) ||
+      options_.reconnect_max_s < options_.reconnect_initial_s) {
     throw std::invalid_argument("ingest: need 0 < reconnect_initial_s <= reconnect_max_s");
   }
   start_s_ = WallClockSeconds();
@@ -192,7 +191,8 @@ void IngestClient::Session(int fd) {
         if (mid && MsSince(last_progress) > options_.stall_timeout_ms) return ReadStatus::kStalled;
         continue;
       }
-      if (r == tcp::IoResult::kClosed) return mid ? ReadStatus::kTruncated : ReadStatus::kClosedClean;
+      if (r == tcp::IoResult::kClosed)
+        return mid ? ReadStatus::kTruncated : ReadStatus::kClosedClean;
       return ReadStatus::kError;
     }
     std::lock_guard lock(mutex_);
@@ -202,11 +202,19 @@ void IngestClient::Session(int fd) {
   // Maps a failed read to its rejection; true when the session must end.
   auto failed = [&](ReadStatus s) {
     switch (s) {
-      case ReadStatus::kOk: return false;
-      case ReadStatus::kTruncated: Reject("truncated_message"); break;
-      case ReadStatus::kStalled: Reject("stalled"); break;
-      case ReadStatus::kError: Reject("socket_error"); break;
-      default: break;
+      case ReadStatus::kOk:
+        return false;
+      case ReadStatus::kTruncated:
+        Reject("truncated_message");
+        break;
+      case ReadStatus::kStalled:
+        Reject("stalled");
+        break;
+      case ReadStatus::kError:
+        Reject("socket_error");
+        break;
+      default:
+        break;
     }
     return true;
   };
@@ -214,7 +222,8 @@ void IngestClient::Session(int fd) {
   // Reads and discards n bytes, folding them into *crc when given.
   auto discard = [&](std::uint64_t n, std::uint64_t* crc) {
     while (n > 0) {
-      const std::size_t chunk = static_cast<std::size_t>(std::min<std::uint64_t>(n, scratch.size()));
+      const std::size_t chunk =
+          static_cast<std::size_t>(std::min<std::uint64_t>(n, scratch.size()));
       const ReadStatus s = read(scratch.data(), chunk, true);
       if (s != ReadStatus::kOk) return s;
       if (crc) *crc = Crc64Ecma182({scratch.data(), chunk}, *crc);
@@ -275,8 +284,9 @@ void IngestClient::Session(int fd) {
     f.arrival_s = WallClockSeconds();
     f.receive_ms = MsSince(t_header);
     const double latency_s = f.arrival_s - header.timestamp_s();
-    const bool shared = options_.clock == IngestOptions::Clock::kShared ||
-                        (options_.clock == IngestOptions::Clock::kAuto && std::abs(latency_s) < 60.0);
+    const bool shared =
+        options_.clock == IngestOptions::Clock::kShared ||
+        (options_.clock == IngestOptions::Clock::kAuto && std::abs(latency_s) < 60.0);
     if (shared) f.latency_ms = latency_s * 1e3;
     Accept(std::move(f));
   }

@@ -1,25 +1,13 @@
-// OpenIGTLink ingest client: connects to any OpenIGTLink server (HOST:PORT), validates
-// every message (image_message.h), and offers the accepted IMAGE frames as an
-// imaging::VolumeSource so the tracker can pull from it.
+// OpenIGTLink ingest client: connects to any OpenIGTLink server (HOST:PORT), validates every
+// message (image_message.h), and offers the accepted IMAGE frames as an imaging::VolumeSource.
 //
-// Robustness. Reconnects after any drop with exponential backoff (reconnect_initial_s
-// doubling up to reconnect_max_s; reset once connected). Messages are read header first;
-// nothing is allocated from a header before it passes DecodeLimits (an oversize IMAGE is
-// read through a fixed 64 KiB scratch buffer and discarded). A bad message whose framing
-// is still trusted (bad CRC, size mismatch, too many voxels, unsupported image) is skipped
-// and the stream goes on; a header that is garbage (bad_header) or announces a body over
-// max_body_bytes cannot be resynchronised, so the connection is dropped and re-opened.
-// A connection that closes mid-message counts as `truncated_message`, one that stalls
-// mid-message for stall_timeout_ms as `stalled`. Non-IMAGE messages whose CRC verifies are
-// counted per type as skipped.
-//
-// Queue. Accepted frames go to a bounded queue (queue_capacity); when it is full the oldest
-// frame is dropped and counted, so a slow consumer always gets the latest frames.
-//
-// Time. Each frame is stamped on arrival (wall clock, s since the Unix epoch). Latency =
-// arrival − message timestamp, recorded only when both are on the same clock (kShared, or
-// kAuto: the message time is within ±60 s of the arrival). Receive time = from the header
-// having arrived to the last voxel having arrived (ms), recorded for every accepted frame.
+// Reconnects with exponential backoff; a bad message whose framing is trusted is skipped, a
+// garbage or oversize header drops the connection. Accepted frames go to a bounded queue
+// that drops (and counts) the oldest. Frames are stamped on arrival (wall clock, s since the
+// Unix epoch); latency (ms, arrival − message timestamp) only on a shared clock; receive
+// time (ms) per frame. Start throws std::invalid_argument on bad options; a receive thread
+// runs until Stop.
+// Details: docs/openigtlink.md#the-ingest-client-imagingigtlingesth
 #pragma once
 
 #include <atomic>
@@ -45,9 +33,9 @@ struct IngestOptions {
   std::size_t queue_capacity = 4;  // ≥ 1
   double reconnect_initial_s = 0.02;
   double reconnect_max_s = 1.0;
-  int max_connect_failures = -1;   // consecutive failed connects before giving up; < 0: never
+  int max_connect_failures = -1;  // consecutive failed connects before giving up; < 0: never
   int connect_timeout_ms = 1000;
-  int stall_timeout_ms = 3000;     // mid-message silence before the connection is dropped
+  int stall_timeout_ms = 3000;  // mid-message silence before the connection is dropped
   enum class Clock { kAuto, kShared, kSeparate };
   Clock clock = Clock::kAuto;
   std::size_t max_samples = 1 << 20;  // latency samples kept
@@ -59,25 +47,25 @@ struct LatencySummary {
 };
 
 struct IngestStats {
-  std::int64_t frames = 0;        // accepted IMAGE frames
-  std::int64_t rejected = 0;      // sum of rejected_by_reason
+  std::int64_t frames = 0;    // accepted IMAGE frames
+  std::int64_t rejected = 0;  // sum of rejected_by_reason
   std::map<std::string, std::int64_t> rejected_by_reason;
-  std::int64_t skipped = 0;       // valid non-IMAGE messages
+  std::int64_t skipped = 0;  // valid non-IMAGE messages
   std::map<std::string, std::int64_t> skipped_by_type;
-  std::int64_t dropped = 0;       // accepted, then dropped from the full queue
-  std::int64_t delivered = 0;     // handed to the consumer
-  std::int64_t connections = 0;   // successful connects
+  std::int64_t dropped = 0;      // accepted, then dropped from the full queue
+  std::int64_t delivered = 0;    // handed to the consumer
+  std::int64_t connections = 0;  // successful connects
   std::int64_t connect_failures = 0;
   std::int64_t bytes = 0;
-  LatencySummary latency;         // arrival − message timestamp (shared clock only)
-  LatencySummary receive;         // per-frame receive time
-  double elapsed_s = 0;           // since Start()
+  LatencySummary latency;  // arrival − message timestamp (shared clock only)
+  LatencySummary receive;  // per-frame receive time
+  double elapsed_s = 0;    // since Start()
 };
 
 struct IngestedFrame {
-  SourceFrame frame;              // volume timestamp = message timestamp
+  SourceFrame frame;  // volume timestamp = message timestamp
   std::string device_name;
-  double arrival_s = 0;           // wall clock, s since the Unix epoch
+  double arrival_s = 0;  // wall clock, s since the Unix epoch
   double receive_ms = 0;
   std::optional<double> latency_ms;
 };

@@ -49,14 +49,15 @@ std::optional<SourceFrame> PhantomSource::Next() {
           const int j = static_cast<int>(std::lround(p.y())) + dy;
           const int k = static_cast<int>(std::lround(p.z())) + dz;
           if (i < 0 || j < 0 || k < 0 || i >= geometry_.dims.x() || j >= geometry_.dims.y() ||
-              k >= geometry_.dims.z()) continue;
+              k >= geometry_.dims.z())
+            continue;
           volume.at(i, j, k) = 250;
         }
   }
   // The moving disc.
   const double phase = 2.0 * std::numbers::pi * t;
-  const Eigen::Vector3d disc = centre + Eigen::Vector3d(20 * std::cos(phase), 20 * std::sin(phase),
-                                                        dims.z() * 0.25);
+  const Eigen::Vector3d disc =
+      centre + Eigen::Vector3d(20 * std::cos(phase), 20 * std::sin(phase), dims.z() * 0.25);
   const int r = 12;
   for (int k = static_cast<int>(disc.z()) - 1; k <= static_cast<int>(disc.z()); ++k) {
     if (k < 0 || k >= geometry_.dims.z()) continue;

@@ -1,16 +1,11 @@
 // A synthetic moving phantom: a stand-in scanner for streaming tests, benchmarks and the
 // `echoservo scanner` command when no simulated scanner is built. Not an ultrasound model.
 //
-// Each frame is a 160×148×208 uint8 volume (default; 0.5 mm voxels, identity direction,
-// origin at 0, image frame = LPS mm) holding speckle-like noise (a fixed random field,
-// values ~ 10..70, shifted by one voxel in x per frame so consecutive frames differ), a
-// bright straight line (value 250, radius 1 voxel: a "catheter" from near the volume's
-// (0.2, 0.5, 0.1) fraction to its centre) and a bright disc (value 200, radius 12 voxels,
-// 2 voxels thick, normal z) whose centre moves on a circle of 20 voxels radius at 1 Hz in
-// acquisition time. Frame n has timestamp n / rate_hz s (rate_hz ≤ 0: n / 30 s).
-// Ground truth: the line (catheter_visible, axis_point_mm, axis_direction, tip_mm) and the
-// disc centre (target_mm). Deterministic for a given seed. Each Next() costs one 5 MB copy
-// plus drawing (~1–2 ms).
+// Each frame: a uint8 volume (default 160×148×208, 0.5 mm voxels, identity direction, image
+// frame = LPS mm) of shifting noise, a bright straight line (the "catheter") and a bright
+// disc moving on a circle at 1 Hz (the "target"), with their ground truth. Frame n has
+// timestamp n / rate_hz s (rate_hz ≤ 0: n / 30 s). Deterministic for a given seed.
+// Details: docs/openigtlink.md#the-synthetic-phantom-imagingigtlphantom_sourceh
 #pragma once
 
 #include <cstdint>

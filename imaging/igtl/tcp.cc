@@ -63,7 +63,8 @@ Fd Listen(const std::string& bind_address, int port, int& bound_port) {
     throw std::runtime_error("bind " + bind_address + ":" + std::to_string(port) + ": " +
                              std::strerror(errno));
   }
-  if (::listen(fd.get(), 8) != 0) throw std::runtime_error(std::string("listen: ") + std::strerror(errno));
+  if (::listen(fd.get(), 8) != 0)
+    throw std::runtime_error(std::string("listen: ") + std::strerror(errno));
   socklen_t len = sizeof addr;
   ::getsockname(fd.get(), reinterpret_cast<sockaddr*>(&addr), &len);
   bound_port = ntohs(addr.sin_port);

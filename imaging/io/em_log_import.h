@@ -1,24 +1,22 @@
 // EM-tracker logs in any format `echoservo report` reads: PLUS tracked sequences here (they
 // need this module's sequence reader), NDI Aurora CSV exports and the simulated tracker's
-// em.csv through hw/em_log.h, whose EmLog they all produce (positions in mm in the
-// tracker's frame, times on the tracker's clock).
+// em.csv through hw/io/em_log.h, whose EmLog they all produce (positions in mm in the
+// tracker's frame, times in s on the tracker's clock).
 //
-// PLUS (.igs.mha, .igs.nrrd, tracker-only or with images): one sample per frame, at the
-// frame's Timestamp (else UnfilteredTimestamp; a frame with neither is an error), the
-// position the translation of the chosen tool's `<Tool>Transform` (e.g. StylusToTracker: the
-// tool's origin in the tracker frame). The tool's `<Tool>TransformStatus` decides: OK (or no
-// status field with the transform present) is a sample; any other status (INVALID,
-// MISSING, OUT_OF_VIEW, …, as PLUS writes them, trailing spaces trimmed) or an absent
-// transform is a drop-out counted under that status ("absent"). A transform that is not 16
-// finite numbers on an OK frame is an error naming the frame. Frame times must strictly
-// increase (error naming the frame).
+// PLUS: one sample per frame at its Timestamp (else UnfilteredTimestamp), the translation of
+// the chosen tool's `<Tool>Transform` (e.g. StylusToTracker); a status other than OK, or no
+// transform, is a drop-out counted under that status ("absent").
+// Errors: std::invalid_argument naming the frame: no timestamp, a transform that is not 16
+// finite numbers on an OK frame, times that do not strictly increase; listing the tools when
+// none is named and several have data.
+// Details: docs/report.md#em-tracker-logs
 #pragma once
 
 #include <filesystem>
 #include <string>
 #include <vector>
 
-#include "hw/em_log.h"
+#include "hw/io/em_log.h"
 #include "imaging/io/plus_sequence.h"
 
 namespace echoservo::imaging {

@@ -22,8 +22,7 @@ namespace {
 }
 
 bool IEquals(const std::string& a, const std::string& b) {
-  return a.size() == b.size() &&
-         std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
            return std::tolower(static_cast<unsigned char>(x)) ==
                   std::tolower(static_cast<unsigned char>(y));
          });
@@ -151,7 +150,7 @@ std::optional<int> MetaElementSize(const std::string& t) {
 std::optional<std::string> TextHeader::Find(const std::string& key) const {
   for (auto it = entries.rbegin(); it != entries.rend(); ++it) {
     if (syntax == HeaderSyntax::kNrrd && !it->nrrd_keyvalue ? IEquals(it->key, key)
-                                                             : it->key == key) {
+                                                            : it->key == key) {
       return it->value;
     }
   }
@@ -190,11 +189,13 @@ TextHeader ReadTextHeader(const fs::path& path) {
       } else if (auto f = line.find(": "); f != std::string::npos) {
         e = {Trim(line.substr(0, f)), Trim(line.substr(f + 2)), false};
       } else {
-        Fail(path, "NRRD header line " + std::to_string(line_no) + " is neither 'field: value' nor 'key:=value'");
+        Fail(path, "NRRD header line " + std::to_string(line_no) +
+                       " is neither 'field: value' nor 'key:=value'");
       }
       h.entries.push_back(std::move(e));
     }
-    if (!ended) Fail(path, "NRRD header does not end with a blank line (truncated or not a NRRD file)");
+    if (!ended)
+      Fail(path, "NRRD header does not end with a blank line (truncated or not a NRRD file)");
     h.data_path = path;
     h.data_offset = reader.consumed();
     if (auto df = h.Find("data file"); df || (df = h.Find("datafile"))) {
@@ -210,7 +211,8 @@ TextHeader ReadTextHeader(const fs::path& path) {
       if (eq == std::string::npos) {
         std::string next;
         if (!reader.Next(next)) {
-          Fail(path, "MetaImage header ends mid-line without an ElementDataFile line (truncated file?)");
+          Fail(path,
+               "MetaImage header ends mid-line without an ElementDataFile line (truncated file?)");
         }
         Fail(path, "MetaImage header line " + std::to_string(line_no) +
                        " is not 'Key = Value' (not a MetaImage file, or no ElementDataFile line)");
@@ -230,7 +232,8 @@ TextHeader ReadTextHeader(const fs::path& path) {
     if (df == "LOCAL") {
       h.data_path = path;
       h.data_offset = reader.consumed();
-    } else if (df == "LIST" || df.find('%') != std::string::npos || df.find(' ') != std::string::npos) {
+    } else if (df == "LIST" || df.find('%') != std::string::npos ||
+               df.find(' ') != std::string::npos) {
       Fail(path, "ElementDataFile = " + df + ": file lists/patterns are not supported");
     } else {
       h.data_path = path.parent_path() / df;
@@ -245,8 +248,9 @@ TextHeader ReadTextHeader(const fs::path& path) {
 
 namespace {
 
-std::uint64_t CheckedProduct(const std::vector<std::int64_t>& dims, int element_size, std::uint64_t cap,
-                             const std::string& where, const std::string& dims_text) {
+std::uint64_t CheckedProduct(const std::vector<std::int64_t>& dims, int element_size,
+                             std::uint64_t cap, const std::string& where,
+                             const std::string& dims_text) {
   std::uint64_t n = 1;
   bool zero = false;
   for (auto d : dims) {
@@ -256,14 +260,15 @@ std::uint64_t CheckedProduct(const std::vector<std::int64_t>& dims, int element_
   if (zero) return 0;
   for (auto d : dims) {
     if (n > cap / static_cast<std::uint64_t>(d)) {
-      throw std::invalid_argument(where + "sizes '" + dims_text + "' exceed the " + ByteCapText(cap) + " cap");
+      throw std::invalid_argument(where + "sizes '" + dims_text + "' exceed the " +
+                                  ByteCapText(cap) + " cap");
     }
     n *= static_cast<std::uint64_t>(d);
   }
   const auto es = static_cast<std::uint64_t>(std::max(element_size, 1));
   if (n > cap / es) {
-    throw std::invalid_argument(where + "sizes '" + dims_text + "' × " + std::to_string(es) + " bytes exceed the " +
-                                ByteCapText(cap) + " cap");
+    throw std::invalid_argument(where + "sizes '" + dims_text + "' × " + std::to_string(es) +
+                                " bytes exceed the " + ByteCapText(cap) + " cap");
   }
   return n * static_cast<std::uint64_t>(element_size);
 }
@@ -324,11 +329,13 @@ PixelLayout CheckPixelLayout(const TextHeader& h, std::uint64_t max_pixel_bytes)
   std::string dims_text;
   if (h.syntax == HeaderSyntax::kMetaImage) {
     if (auto b = h.Find("BinaryData"); b && *b != "True") {
-      throw std::invalid_argument(where + "BinaryData = " + *b + ": ASCII pixel data is not supported");
+      throw std::invalid_argument(where + "BinaryData = " + *b +
+                                  ": ASCII pixel data is not supported");
     }
     const auto ndims = ParseInteger(h.Require("NDims"), where + "NDims");
     if (ndims < 1 || ndims > 4) {
-      throw std::invalid_argument(where + "NDims = " + std::to_string(ndims) + " (1 to 4 supported)");
+      throw std::invalid_argument(where + "NDims = " + std::to_string(ndims) +
+                                  " (1 to 4 supported)");
     }
     dims_text = "DimSize = " + h.Require("DimSize");
     for (double d : ParseNumbers(h.Require("DimSize"), where + "DimSize")) {
@@ -362,7 +369,8 @@ PixelLayout CheckPixelLayout(const TextHeader& h, std::uint64_t max_pixel_bytes)
     if (L.compressed) {
       if (auto cs = h.Find("CompressedDataSize")) {
         const auto n = ParseInteger(*cs, where + "CompressedDataSize");
-        if (n <= 0) throw std::invalid_argument(where + "CompressedDataSize = " + *cs + " must be > 0");
+        if (n <= 0)
+          throw std::invalid_argument(where + "CompressedDataSize = " + *cs + " must be > 0");
         L.compressed_size = static_cast<std::uint64_t>(n);
         if (L.compressed_size > h.data_available) {
           throw std::invalid_argument(
@@ -375,7 +383,9 @@ PixelLayout CheckPixelLayout(const TextHeader& h, std::uint64_t max_pixel_bytes)
     }
   } else {
     const auto dim = ParseInteger(h.Require("dimension"), where + "dimension");
-    if (dim < 1 || dim > 4) throw std::invalid_argument(where + "dimension: " + std::to_string(dim) + " (1 to 4 supported)");
+    if (dim < 1 || dim > 4)
+      throw std::invalid_argument(where + "dimension: " + std::to_string(dim) +
+                                  " (1 to 4 supported)");
     dims_text = "sizes: " + h.Require("sizes");
     for (double d : ParseNumbers(h.Require("sizes"), where + "sizes")) {
       if (d != std::floor(d) || d < 0 || d > 1e12) {
@@ -384,7 +394,8 @@ PixelLayout CheckPixelLayout(const TextHeader& h, std::uint64_t max_pixel_bytes)
       L.dims.push_back(static_cast<std::int64_t>(d));
     }
     if (static_cast<std::int64_t>(L.dims.size()) != dim) {
-      throw std::invalid_argument(where + dims_text + " does not have dimension = " + std::to_string(dim) + " numbers");
+      throw std::invalid_argument(where + dims_text +
+                                  " does not have dimension = " + std::to_string(dim) + " numbers");
     }
     const std::string type = h.Require("type");
     const auto meta = NrrdTypeToMeta(type);
@@ -410,8 +421,8 @@ PixelLayout CheckPixelLayout(const TextHeader& h, std::uint64_t max_pixel_bytes)
       L.nrrd_space_directions = ParseSpaceDirections(*sd, where + "space directions");
       if (L.nrrd_space_directions.size() != L.dims.size()) {
         throw std::invalid_argument(where + "space directions has " +
-                                    std::to_string(L.nrrd_space_directions.size()) + " entries for " +
-                                    std::to_string(L.dims.size()) + " axes");
+                                    std::to_string(L.nrrd_space_directions.size()) +
+                                    " entries for " + std::to_string(L.dims.size()) + " axes");
       }
     }
     if (auto so = h.Find("space origin")) {
@@ -426,7 +437,8 @@ PixelLayout CheckPixelLayout(const TextHeader& h, std::uint64_t max_pixel_bytes)
   bool any_pixels = true;
   for (auto d : L.dims) any_pixels = any_pixels && d > 0;
   if (any_pixels && L.element_size == 0) {
-    throw std::invalid_argument(where + "ElementType " + L.element_type + " with non-empty " + dims_text);
+    throw std::invalid_argument(where + "ElementType " + L.element_type + " with non-empty " +
+                                dims_text);
   }
   if (!L.compressed && L.pixel_bytes > h.data_available) {
     throw std::invalid_argument(where + dims_text + " (" + L.element_type + ") needs " +

@@ -37,10 +37,10 @@ struct TextHeader {
   };
   HeaderSyntax syntax = HeaderSyntax::kMetaImage;
   std::vector<Entry> entries;
-  std::filesystem::path path;          // the header file
-  std::filesystem::path data_path;     // where the pixel data lies (== path when LOCAL)
-  std::uint64_t data_offset = 0;       // byte offset of the pixel data in data_path
-  std::uint64_t data_available = 0;    // bytes from data_offset to the end of data_path
+  std::filesystem::path path;        // the header file
+  std::filesystem::path data_path;   // where the pixel data lies (== path when LOCAL)
+  std::uint64_t data_offset = 0;     // byte offset of the pixel data in data_path
+  std::uint64_t data_available = 0;  // bytes from data_offset to the end of data_path
 
   // The value of the last entry with this key (MetaImage keys are case-sensitive, NRRD
   // field names are compared case-insensitively), or nullopt.
@@ -61,17 +61,18 @@ TextHeader ReadTextHeader(const std::filesystem::path& path);
 // Readers that allocate the whole pixel data keep the 4 GiB default; a reader that streams
 // uncompressed frames from the file may allow more (the data must still be in the file).
 struct PixelLayout {
-  std::vector<std::int64_t> dims;   // DimSize / sizes, fastest first
-  std::string element_type;         // MetaImage spelling, e.g. MET_UCHAR (NRRD types mapped)
-  int element_size = 0;             // bytes; 0 for MET_OTHER (allowed only with no pixels)
-  bool compressed = false;          // zlib (MetaImage) or gzip (NRRD "gz")
+  std::vector<std::int64_t> dims;     // DimSize / sizes, fastest first
+  std::string element_type;           // MetaImage spelling, e.g. MET_UCHAR (NRRD types mapped)
+  int element_size = 0;               // bytes; 0 for MET_OTHER (allowed only with no pixels)
+  bool compressed = false;            // zlib (MetaImage) or gzip (NRRD "gz")
   std::uint64_t compressed_size = 0;  // bytes of compressed stream to read (when compressed)
   std::uint64_t pixel_bytes = 0;      // product(dims) · element_size
   // NRRD geometry (space directions / space origin), when given.
   std::vector<std::vector<double>> nrrd_space_directions;  // one per axis; empty = "none"
   std::vector<double> nrrd_space_origin;
 };
-PixelLayout CheckPixelLayout(const TextHeader& header, std::uint64_t max_pixel_bytes = kMaxPixelBytes);
+PixelLayout CheckPixelLayout(const TextHeader& header,
+                             std::uint64_t max_pixel_bytes = kMaxPixelBytes);
 // "4 GiB" for messages about a cap in bytes.
 std::string ByteCapText(std::uint64_t bytes);
 

@@ -20,18 +20,34 @@ constexpr const char* kFramePrefix = "Seq_Frame";
 
 std::string WithTransformSuffix(const std::string& name) {
   const std::string suffix = "Transform";
-  if (name.size() >= suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+  if (name.size() >= suffix.size() &&
+      name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
     return name;
   }
   return name + suffix;
 }
 
 bool IsStructuralMetaKey(const std::string& k) {
-  static const std::set<std::string> keys = {
-      "ObjectType", "NDims", "BinaryData", "BinaryDataByteOrderMSB", "ElementByteOrderMSB",
-      "CompressedData", "CompressedDataSize", "DimSize", "ElementSpacing", "ElementSize",
-      "ElementType", "Offset", "Origin", "Position", "TransformMatrix", "Rotation",
-      "Orientation", "ElementDataFile", "ElementNumberOfChannels", "HeaderSize"};
+  static const std::set<std::string> keys = {"ObjectType",
+                                             "NDims",
+                                             "BinaryData",
+                                             "BinaryDataByteOrderMSB",
+                                             "ElementByteOrderMSB",
+                                             "CompressedData",
+                                             "CompressedDataSize",
+                                             "DimSize",
+                                             "ElementSpacing",
+                                             "ElementSize",
+                                             "ElementType",
+                                             "Offset",
+                                             "Origin",
+                                             "Position",
+                                             "TransformMatrix",
+                                             "Rotation",
+                                             "Orientation",
+                                             "ElementDataFile",
+                                             "ElementNumberOfChannels",
+                                             "HeaderSize"};
   return keys.count(k) != 0;
 }
 
@@ -174,21 +190,23 @@ SequenceHeader ReadSequenceHeader(const fs::path& path, std::uint64_t max_pixel_
   s.compressed = L.compressed;
   for (std::size_t a = 0; a + 1 < nd; ++a) {
     if (L.dims[a] > VolumeGeometry::kMaxDim * 4LL) {
-      throw std::invalid_argument(where + "frame size " + std::to_string(L.dims[a]) + " is too large");
+      throw std::invalid_argument(where + "frame size " + std::to_string(L.dims[a]) +
+                                  " is too large");
     }
     s.frame_dims[a] = static_cast<int>(L.dims[a]);
   }
   if (nd == 3) s.frame_dims[2] = s.frame_dims[0] == 0 && s.frame_dims[1] == 0 ? 0 : 1;
   const std::int64_t n_frames = L.dims.back();
   if (static_cast<std::uint64_t>(n_frames) > kMaxSequenceFrames) {
-    throw std::invalid_argument(where + "declares " + std::to_string(n_frames) + " frames, more than the " +
-                                std::to_string(kMaxSequenceFrames) + " a sequence may have");
+    throw std::invalid_argument(where + "declares " + std::to_string(n_frames) +
+                                " frames, more than the " + std::to_string(kMaxSequenceFrames) +
+                                " a sequence may have");
   }
   const bool tracker_only = s.FrameBytes() == 0;
   if (tracker_only && static_cast<std::uint64_t>(n_frames) > h.entries.size()) {
     throw std::invalid_argument(where + "declares " + std::to_string(n_frames) +
-                                " frames without pixels but has only " + std::to_string(h.entries.size()) +
-                                " header fields");
+                                " frames without pixels but has only " +
+                                std::to_string(h.entries.size()) + " header fields");
   }
   if (tracker_only && L.element_size > 0 && s.frame_dims[0] * s.frame_dims[1] != 0) {
     throw std::invalid_argument(where + "inconsistent frame size");
@@ -256,7 +274,8 @@ SequenceHeader ReadSequenceHeader(const fs::path& path, std::uint64_t max_pixel_
       const auto index = ParseInteger(e.key.substr(digits_begin, p - digits_begin), where + e.key);
       if (index >= n_frames) {
         throw std::invalid_argument(where + e.key + ": frame " + std::to_string(index) +
-                                    " but the sizes declare " + std::to_string(n_frames) + " frames");
+                                    " but the sizes declare " + std::to_string(n_frames) +
+                                    " frames");
       }
       std::string name = e.key.substr(p + 1);
       if (nrrd && name == "Status") name = "ImageStatus";
@@ -310,8 +329,11 @@ std::string FrameKey(std::size_t i, std::size_t n_frames, const std::string& nam
 void CheckFrameFields(const PlusSequence& s, const std::string& where) {
   for (const auto& f : s.frames) {
     for (const auto& [k, v] : f.fields) {
-      if (k.empty() || v.find('\n') != std::string::npos || k.find_first_of(" =:\n") != std::string::npos) {
-        throw std::invalid_argument(where + "frame field '" + k + "' cannot be written (empty name, or newline/space/'='/':' in it)");
+      if (k.empty() || v.find('\n') != std::string::npos ||
+          k.find_first_of(" =:\n") != std::string::npos) {
+        throw std::invalid_argument(
+            where + "frame field '" + k +
+            "' cannot be written (empty name, or newline/space/'='/':' in it)");
       }
     }
   }
@@ -333,13 +355,15 @@ std::string MetaHeaderText(const PlusSequence& s, std::optional<std::size_t> com
   }
   for (std::size_t c = 0; c < nd; ++c)
     for (std::size_t r = 0; r < nd; ++r)
-      tm.push_back(r < 3 && c < 3 ? s.direction(static_cast<int>(r), static_cast<int>(c)) : (r == c ? 1.0 : 0.0));
+      tm.push_back(r < 3 && c < 3 ? s.direction(static_cast<int>(r), static_cast<int>(c))
+                                  : (r == c ? 1.0 : 0.0));
   line("ObjectType", "Image");
   line("NDims", std::to_string(nd));
   line("AnatomicalOrientation", s.HeaderField("AnatomicalOrientation").value_or("RAI"));
   line("BinaryData", "True");
   line("BinaryDataByteOrderMSB", "False");
-  line("CenterOfRotation", s.HeaderField("CenterOfRotation").value_or(nd == 4 ? "0 0 0 0" : "0 0 0"));
+  line("CenterOfRotation",
+       s.HeaderField("CenterOfRotation").value_or(nd == 4 ? "0 0 0 0" : "0 0 0"));
   line("CompressedData", compressed_size ? "True" : "False");
   if (compressed_size) line("CompressedDataSize", std::to_string(*compressed_size));
   line("DimSize", DimsText(s, n_frames));
@@ -349,7 +373,9 @@ std::string MetaHeaderText(const PlusSequence& s, std::optional<std::size_t> com
   line("Offset", JoinNumbers(offset));
   line("TransformMatrix", JoinNumbers(tm));
   for (const auto& [k, v] : s.header_fields) {
-    if (k == "AnatomicalOrientation" || k == "CenterOfRotation" || k == "Kinds" || IsStructuralMetaKey(k)) continue;
+    if (k == "AnatomicalOrientation" || k == "CenterOfRotation" || k == "Kinds" ||
+        IsStructuralMetaKey(k))
+      continue;
     if (k.empty() || k.find('=') != std::string::npos || k.rfind(kFramePrefix, 0) == 0) {
       throw std::invalid_argument(where + "header field name '" + k + "' cannot be written");
     }
@@ -364,8 +390,9 @@ std::string MetaHeaderText(const PlusSequence& s, std::optional<std::size_t> com
 std::string NrrdHeaderText(const PlusSequence& s, bool compressed, const std::string& where) {
   const std::size_t nd = s.volume_frames ? 4 : 3;
   const std::size_t n_frames = s.frames.size();
-  std::string text = "NRRD0004\n# Complete NRRD file format specification at:\n"
-                     "# http://teem.sourceforge.net/nrrd/format.html\n";
+  std::string text =
+      "NRRD0004\n# Complete NRRD file format specification at:\n"
+      "# http://teem.sourceforge.net/nrrd/format.html\n";
   text += "dimension: " + std::to_string(nd) + "\n";
   text += std::string("encoding: ") + (compressed ? "gz" : "raw") + "\n";
   text += "endian: little\n";
@@ -374,7 +401,8 @@ std::string NrrdHeaderText(const PlusSequence& s, bool compressed, const std::st
   text += "space dimension: 3\n";
   std::string dirs;
   for (std::size_t a = 0; a + 1 < nd; ++a) {
-    const Eigen::Vector3d v = s.direction.col(static_cast<int>(a)) * s.spacing_mm[static_cast<int>(a)];
+    const Eigen::Vector3d v =
+        s.direction.col(static_cast<int>(a)) * s.spacing_mm[static_cast<int>(a)];
     dirs += '(';
     dirs += ii::FormatNumber(v.x());
     dirs += ',';
@@ -433,7 +461,9 @@ void WritePlusSequence(const PlusSequence& s, const fs::path& path, bool compres
   if (do_compress) packed = ii::Deflate(s.pixels, nrrd);
   const std::string text =
       nrrd ? NrrdHeaderText(s, do_compress, where)
-           : MetaHeaderText(s, do_compress ? std::optional<std::size_t>(packed.size()) : std::nullopt, "LOCAL", where);
+           : MetaHeaderText(s,
+                            do_compress ? std::optional<std::size_t>(packed.size()) : std::nullopt,
+                            "LOCAL", where);
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) throw std::invalid_argument(where + "cannot open for writing");
   out.write(text.data(), static_cast<std::streamsize>(text.size()));
@@ -460,15 +490,18 @@ Volume SequenceFrameToVolume(const PlusSequence& s, std::size_t frame) {
   return SequenceFrameToVolume(s, frame, {});  // the checks there name what is wrong
 }
 
-Volume SequenceFrameToVolume(const PlusSequence& s, std::size_t frame, std::span<const std::uint8_t> pixels) {
+Volume SequenceFrameToVolume(const PlusSequence& s, std::size_t frame,
+                             std::span<const std::uint8_t> pixels) {
   const std::string where = "PLUS sequence frame " + std::to_string(frame) + ": ";
   if (frame >= s.frames.size()) throw std::invalid_argument(where + "no such frame");
   if (s.element_type != "MET_UCHAR" || s.element_size != 1) {
     throw std::invalid_argument(where + "ElementType " + s.element_type + " is not MET_UCHAR");
   }
-  if (s.FrameBytes() == 0) throw std::invalid_argument(where + "tracker-only sequence has no images");
+  if (s.FrameBytes() == 0)
+    throw std::invalid_argument(where + "tracker-only sequence has no images");
   if (pixels.size() != s.FrameBytes()) {
-    throw std::invalid_argument(where + std::to_string(pixels.size()) + " bytes of pixels, the frame has " +
+    throw std::invalid_argument(where + std::to_string(pixels.size()) +
+                                " bytes of pixels, the frame has " +
                                 std::to_string(s.FrameBytes()));
   }
   VolumeGeometry g;

@@ -1,28 +1,13 @@
 // PLUS sequence metafiles (.igs.mha, .igs.nrrd): a stack of tracked ultrasound frames with
 // per-frame fields, read and written by our own parser (no VTK).
 //
-// Layout. MetaImage syntax: a text header of `Key = Value` lines, per-frame fields as
-// `Seq_FrameNNNN_<Name> = value`, then `ElementDataFile = LOCAL` and the pixel data of all
-// frames (raw, or one zlib stream when `CompressedData = True`, of `CompressedDataSize`
-// bytes). NRRD syntax: `field: value` lines, frame fields as `Seq_FrameNNNN_<Name>:=value`,
-// a blank line, then raw or gzip data. Frame shapes:
-//   NDims = 3, DimSize X Y N          N 2D frames of X·Y pixels (frame_dims = X Y 1);
-//   NDims = 4, DimSize X Y Z N        N 3D volumes (frame_dims = X Y Z), as PLUS writes
-//                                     volume sequences ("Kinds = domain domain domain list");
-//   DimSize 0 0 N (ElementType MET_OTHER)  tracker-only: N frames of fields, no pixels.
-// The frame count is the last DimSize; frame fields with an index ≥ N are an error.
-// Geometry fields (ElementSpacing, Offset, TransformMatrix; NRRD space directions/origin)
-// describe one frame in mm (the frame axis's entries are dropped).
-//
-// Field values are kept as strings with surrounding whitespace trimmed (so `OK ` reads as
-// `OK`). Helpers parse transforms (16 numbers, row-major 4×4, mm), statuses and timestamps.
-// A transform field `<Name>Transform` with no `<Name>TransformStatus` counts as OK. In NRRD
-// files PLUS names the image status `Status`; it is read as `ImageStatus` so both syntaxes
-// give the same fields (and written back as `Status` to NRRD).
-//
-// Safety: sizes are checked before allocation (4 GiB cap, 2^20 frames; raw data must be present in the
-// file; compressed data must fit CompressedDataSize and the file, and inflate to exactly
-// the declared size). Errors: std::invalid_argument naming the file and the problem.
+// Frames: 2D (NDims 3), 3D volumes (NDims 4) or tracker-only (DimSize 0 0 N). Geometry in mm
+// for one frame; frame fields kept as trimmed strings, with helpers for transforms (16
+// numbers, row-major 4×4, mm; e.g. ImageToProbe, ProbeToReference), statuses and timestamps
+// (s). A transform without a status counts as OK; NRRD's `Status` reads as `ImageStatus`.
+// Sizes are checked before allocation (4 GiB cap, 2^20 frames, data present in the file).
+// Errors: std::invalid_argument naming the file and the problem.
+// Details: docs/imaging.md#plus-sequences-imagingioplus_sequenceh
 #pragma once
 
 #include <Eigen/Core>
@@ -101,7 +86,8 @@ std::vector<Volume> SequenceToVolumes(const PlusSequence& sequence);
 Volume SequenceFrameToVolume(const PlusSequence& sequence, std::size_t frame);
 // The same with the frame's pixels given (FrameBytes() of them; SequenceReader reads them
 // from the file), `sequence.pixels` unused.
-Volume SequenceFrameToVolume(const PlusSequence& sequence, std::size_t frame, std::span<const std::uint8_t> pixels);
+Volume SequenceFrameToVolume(const PlusSequence& sequence, std::size_t frame,
+                             std::span<const std::uint8_t> pixels);
 // The inverse: volumes with equal geometry → a NDims = 4 sequence (or NDims = 3 when every
 // volume has dims.z = 1) with fields Timestamp, FrameNumber, ImageStatus = OK,
 // ImageToProbeTransform(+Status), ProbeToReferenceTransform(+Status).
@@ -116,6 +102,7 @@ SequenceFrame VolumeFrameFields(const Volume& volume);
 // of `sequence`'s frames, whose raw, uncompressed pixels are in the file `data_file_name`
 // beside the header; `sequence.pixels` is not used. Throws std::invalid_argument when the
 // name is not a plain file name or a field cannot be written.
-std::string PlusSequenceDetachedHeader(const PlusSequence& sequence, const std::string& data_file_name);
+std::string PlusSequenceDetachedHeader(const PlusSequence& sequence,
+                                       const std::string& data_file_name);
 
 }  // namespace echoservo::imaging

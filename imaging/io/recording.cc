@@ -1,7 +1,5 @@
 #include "imaging/io/recording.h"
 
-#include "imaging/io/truth_fields.h"
-
 #include <algorithm>
 #include <cctype>
 #include <stdexcept>
@@ -11,6 +9,7 @@
 
 #include "imaging/io/plus_sequence.h"
 #include "imaging/io/sequence_reader.h"
+#include "imaging/io/truth_fields.h"
 #include "imaging/io/volume_io.h"
 
 namespace echoservo::imaging {
@@ -34,7 +33,8 @@ class SequenceSource : public VolumeSource {
   std::optional<SourceFrame> Next() override {
     if (next_ >= reader_->size()) return std::nullopt;
     const std::size_t i = next_++;
-    return SourceFrame{reader_->ReadVolume(i), TruthFromFields(reader_->sequence().frames[i].fields)};
+    return SourceFrame{reader_->ReadVolume(i),
+                       TruthFromFields(reader_->sequence().frames[i].fields)};
   }
   double nominal_rate_hz() const override { return rate_hz_; }
 
@@ -68,7 +68,8 @@ bool IsPlusSequenceFile(const fs::path& path) {
   for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   for (const char* suffix : {".igs.mha", ".igs.mhd", ".igs.nrrd"}) {
     const std::string s = suffix;
-    if (name.size() > s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0) return true;
+    if (name.size() > s.size() && name.compare(name.size() - s.size(), s.size(), s) == 0)
+      return true;
   }
   return false;
 }
@@ -78,23 +79,28 @@ std::unique_ptr<VolumeSource> OpenRecording(const fs::path& path) {
   if (fs::is_directory(path, ec)) {
     std::vector<fs::path> files;
     for (const auto& entry : fs::directory_iterator(path, ec)) {
-      if (entry.is_regular_file(ec) && IsVolumeFile(entry.path()) && !IsPlusSequenceFile(entry.path())) {
+      if (entry.is_regular_file(ec) && IsVolumeFile(entry.path()) &&
+          !IsPlusSequenceFile(entry.path())) {
         files.push_back(entry.path());
       }
     }
-    if (ec) throw std::invalid_argument(path.string() + ": cannot list the folder: " + ec.message());
+    if (ec)
+      throw std::invalid_argument(path.string() + ": cannot list the folder: " + ec.message());
     if (files.empty()) {
-      throw std::invalid_argument(path.string() + ": folder holds no volume files (.mha, .mhd, .vti, .nrrd)");
+      throw std::invalid_argument(path.string() +
+                                  ": folder holds no volume files (.mha, .mhd, .vti, .nrrd)");
     }
     std::sort(files.begin(), files.end());
     return std::make_unique<FileListSource>(std::move(files));
   }
-  if (!fs::exists(path, ec)) throw std::invalid_argument(path.string() + ": no such file or folder");
+  if (!fs::exists(path, ec))
+    throw std::invalid_argument(path.string() + ": no such file or folder");
   if (IsPlusSequenceFile(path)) {
     auto reader = std::make_unique<SequenceReader>(path);
     const PlusSequence& seq = reader->sequence();
     if (seq.FrameBytes() == 0) {
-      throw std::invalid_argument(path.string() + ": tracker-only sequence (no images) cannot be replayed as volumes");
+      throw std::invalid_argument(
+          path.string() + ": tracker-only sequence (no images) cannot be replayed as volumes");
     }
     if (seq.element_type != "MET_UCHAR") {
       throw std::invalid_argument(path.string() + ": ElementType " + seq.element_type +

@@ -1,21 +1,13 @@
-// Reading a PLUS sequence one frame at a time, for replaying long recordings.
+// Reading a PLUS sequence one frame at a time, for replaying long recordings (OpenRecording,
+// `track --replay`): memory holds one frame, not the whole sequence.
 //
-// Role: OpenRecording (and so `track --replay`) takes a sequence's volumes in order.
-// ReadPlusSequence holds the whole sequence in memory within a 4 GiB cap: about 35 s of
-// 4.9 MB volumes at 25 vol/s. SequenceReader parses the header and every frame's fields when
-// it opens (the same checks and errors as ReadPlusSequence), then reads a frame's pixels from
-// the file when that frame is asked for, so memory holds one frame.
-//
-// Uncompressed pixel data (after the header with `ElementDataFile = LOCAL`, or a detached
-// data file such as SequenceWriter's .raw) is streamed: the sequence may exceed 4 GiB, as long
-// as the file holds all the frames the header declares (checked at open) and each frame is
-// within 4 GiB. Compressed data is one zlib/gzip stream that cannot be entered mid-way: it is
-// inflated whole when the reader opens, within the 4 GiB cap, as ReadPlusSequence does.
-//
+// Uncompressed data is streamed from the file (the sequence may exceed 4 GiB; each frame
+// within 4 GiB); compressed data is inflated whole at open, within the 4 GiB cap.
 // Units and frames as in plus_sequence.h (mm, s; ImageToProbe, ProbeToReference).
 // Errors: std::invalid_argument naming the file: at open as ReadPlusSequence; from ReadVolume
 // for a frame out of range, an element type other than MET_UCHAR, or a data file that has
 // shrunk since it was opened.
+// Details: docs/imaging.md#reading-long-sequences-imagingiosequence_readerh
 #pragma once
 
 #include <cstddef>

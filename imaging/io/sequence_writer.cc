@@ -3,7 +3,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "hw/durable_file.h"
+#include "hw/io/durable_file.h"
 #include "imaging/io/plus_sequence.h"
 
 namespace echoservo::imaging {
@@ -18,9 +18,10 @@ struct SequenceWriter::State {
 
 SequenceWriter::SequenceWriter(fs::path header_path) : header_path_(std::move(header_path)) {
   if (header_path_.extension() != ".mhd" || header_path_.stem().empty()) {
-    throw std::invalid_argument(header_path_.string() +
-                                ": a streamed sequence is a MetaImage header with its data beside it; "
-                                "name it <name>.mhd (e.g. volumes.igs.mhd)");
+    throw std::invalid_argument(
+        header_path_.string() +
+        ": a streamed sequence is a MetaImage header with its data beside it; "
+        "name it <name>.mhd (e.g. volumes.igs.mhd)");
   }
 }
 
@@ -33,7 +34,8 @@ fs::path SequenceWriter::data_path() const {
 
 std::size_t SequenceWriter::frames() const { return state_ ? state_->sequence.frames.size() : 0; }
 
-void SequenceWriter::Append(const Volume& volume, const std::map<std::string, std::string>& extra_fields) {
+void SequenceWriter::Append(const Volume& volume,
+                            const std::map<std::string, std::string>& extra_fields) {
   if (!state_) {
     auto s = std::make_unique<State>();
     s->sequence = SequenceFor(volume);
@@ -41,11 +43,13 @@ void SequenceWriter::Append(const Volume& volume, const std::map<std::string, st
     s->voxels = hw::AppendOnlyFile(data_path());
     state_ = std::move(s);
   } else if (state_->broken) {
-    throw std::runtime_error(data_path().string() + ": an earlier write failed; the recording stops at frame " +
+    throw std::runtime_error(data_path().string() +
+                             ": an earlier write failed; the recording stops at frame " +
                              std::to_string(frames()));
   } else if (!(volume.geometry() == state_->geometry)) {
-    throw std::invalid_argument(header_path_.string() + ": frame " + std::to_string(frames()) +
-                                " has a geometry different from frame 0's (a sequence holds one geometry)");
+    throw std::invalid_argument(
+        header_path_.string() + ": frame " + std::to_string(frames()) +
+        " has a geometry different from frame 0's (a sequence holds one geometry)");
   }
   SequenceFrame frame = VolumeFrameFields(volume);
   for (const auto& [k, v] : extra_fields) frame.fields[k] = v;

@@ -106,18 +106,20 @@ VolumeGeometry GeometryFromMetaHeader(const ii::TextHeader& h, const ii::PixelLa
     if (!v) return std::nullopt;
     auto nums = ii::ParseNumbers(*v, where + key);
     if (nums.size() != count) {
-      Fail(h.path, std::string(key) + " has " + std::to_string(nums.size()) + " numbers, expected " +
-                       std::to_string(count));
+      Fail(h.path, std::string(key) + " has " + std::to_string(nums.size()) +
+                       " numbers, expected " + std::to_string(count));
     }
     return nums;
   };
   auto spacing = vec("ElementSpacing", n);
   if (!spacing) spacing = vec("ElementSize", n);
-  if (spacing) for (std::size_t a = 0; a < n; ++a) g.spacing_mm[static_cast<int>(a)] = (*spacing)[a];
+  if (spacing)
+    for (std::size_t a = 0; a < n; ++a) g.spacing_mm[static_cast<int>(a)] = (*spacing)[a];
   auto origin = vec("Offset", n);
   if (!origin) origin = vec("Origin", n);
   if (!origin) origin = vec("Position", n);
-  if (origin) for (std::size_t a = 0; a < n; ++a) g.origin_mm[static_cast<int>(a)] = (*origin)[a];
+  if (origin)
+    for (std::size_t a = 0; a < n; ++a) g.origin_mm[static_cast<int>(a)] = (*origin)[a];
   auto tm = vec("TransformMatrix", n * n);
   if (!tm) tm = vec("Rotation", n * n);
   if (!tm) tm = vec("Orientation", n * n);
@@ -137,7 +139,8 @@ VolumeGeometry GeometryFromNrrd(const ii::TextHeader& h, const ii::PixelLayout& 
   VolumeGeometry g;
   for (std::size_t a = 0; a < L.dims.size(); ++a) {
     if (L.dims[a] < 1 || L.dims[a] > VolumeGeometry::kMaxDim) {
-      Fail(h.path, "sizes: each size must be in [1, " + std::to_string(VolumeGeometry::kMaxDim) + "]");
+      Fail(h.path,
+           "sizes: each size must be in [1, " + std::to_string(VolumeGeometry::kMaxDim) + "]");
     }
     g.dims[static_cast<int>(a)] = static_cast<int>(L.dims[a]);
   }
@@ -149,13 +152,15 @@ VolumeGeometry GeometryFromNrrd(const ii::TextHeader& h, const ii::PixelLayout& 
       Eigen::Vector3d col = Eigen::Vector3d::Zero();
       for (std::size_t r = 0; r < v.size(); ++r) col[static_cast<int>(r)] = v[r];
       const double s = col.norm();
-      if (!(s > 0)) Fail(h.path, "space directions: axis " + std::to_string(a) + " has zero length");
+      if (!(s > 0))
+        Fail(h.path, "space directions: axis " + std::to_string(a) + " has zero length");
       g.spacing_mm[static_cast<int>(a)] = s;
       g.direction.col(static_cast<int>(a)) = col / s;
     }
   } else if (auto sp = h.Find("spacings")) {
     auto s = ii::ParseNumbers(*sp, h.Where() + "spacings");
-    for (std::size_t a = 0; a < std::min<std::size_t>(s.size(), 3); ++a) g.spacing_mm[static_cast<int>(a)] = s[a];
+    for (std::size_t a = 0; a < std::min<std::size_t>(s.size(), 3); ++a)
+      g.spacing_mm[static_cast<int>(a)] = s[a];
   }
   for (std::size_t r = 0; r < std::min<std::size_t>(L.nrrd_space_origin.size(), 3); ++r) {
     g.origin_mm[static_cast<int>(r)] = L.nrrd_space_origin[r];
@@ -204,7 +209,8 @@ VolumeGeometry CheckVtiHeader(const fs::path& path, std::uint64_t file_size) {
 
 Volume ReadVti(const fs::path& path) {
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) Fail(path, fs::exists(path, ec) ? "not a regular file" : "no such file");
+  if (!fs::is_regular_file(path, ec))
+    Fail(path, fs::exists(path, ec) ? "not a regular file" : "no such file");
   const auto size = fs::file_size(path, ec);
   CheckVtiHeader(path, size);
   vtkNew<vtkXMLImageDataReader> reader;
@@ -215,8 +221,9 @@ Volume ReadVti(const fs::path& path) {
   vtkImageData* image = reader->GetOutput();
   if (!errors->message.empty() || reader->GetErrorCode() != 0) {
     Fail(path, "VTK could not read it: " +
-                   (errors->message.empty() ? std::string("error code ") + std::to_string(reader->GetErrorCode())
-                                            : TrimVtkMessage(errors->message)));
+                   (errors->message.empty()
+                        ? std::string("error code ") + std::to_string(reader->GetErrorCode())
+                        : TrimVtkMessage(errors->message)));
   }
   if (image == nullptr) Fail(path, "VTK produced no image");
   VolumeGeometry g;
@@ -263,8 +270,9 @@ Volume ReadMeta(const fs::path& path) {
   reader->Update();
   if (!errors->message.empty() || reader->GetErrorCode() != 0) {
     Fail(path, "VTK could not read it: " +
-                   (errors->message.empty() ? std::string("error code ") + std::to_string(reader->GetErrorCode())
-                                            : TrimVtkMessage(errors->message)));
+                   (errors->message.empty()
+                        ? std::string("error code ") + std::to_string(reader->GetErrorCode())
+                        : TrimVtkMessage(errors->message)));
   }
   return ToVolume(reader->GetOutput(), g, path);
 }

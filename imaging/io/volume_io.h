@@ -1,31 +1,14 @@
 // Reading and writing single 3D volumes: MetaImage (.mha, .mhd + .raw/.zraw), VTK XML image
-// data (.vti) and NRRD (.nrrd, read only; VTK has no NRRD writer).
+// data (.vti) and NRRD (.nrrd, .nhdr; read only).
 //
-// Units and frames as in imaging/volume.h: spacing and origin in mm, `direction` columns are
-// the index axes in the image frame. Geometry on disk:
-//   MetaImage  ElementSpacing, Offset, TransformMatrix (9 numbers: the direction's columns
-//              one after the other — ITK's convention, column c = numbers 3c..3c+2).
-//   VTI        Spacing, Origin, Direction (VTK 9 attribute, row-major).
-//   NRRD       space directions (index axis vectors = direction column · spacing), space
-//              origin.
-// Pixel data: vtkXMLImageDataReader (.vti, geometry incl. Direction from VTK) and
-// vtkMetaImageReader (raw MetaImage); writing: vtkMetaImageWriter, vtkXMLImageDataWriter.
-// Exceptions, each because VTK 9.1 falls short here: (a) MetaImage geometry comes from our
-// own parse of the text header (VTK's reader drops TransformMatrix), and WriteVolume rewrites
-// the header VTK wrote with exact ElementSpacing, Offset and TransformMatrix (VTK writes an
-// identity matrix and rounded numbers); (b) compressed MetaImage pixel data is inflated by
-// our checked zlib code (VTK's MetaIO returns garbage silently for a corrupt stream);
-// (c) NRRD is decoded by our code (vtkNrrdReader cannot read gzip encoding and drops the
-// direction). Pose (image_to_probe,
-// probe_to_reference), timestamp and frame index are not stored in these files (see
-// plus_sequence.h for files that carry them); read volumes get identity poses and time 0.
-//
-// Only uint8 single-component scalars make a Volume: any other scalar type is an error that
-// names the type (no silent rescaling). Before VTK sees a MetaImage or NRRD file its header
-// is parsed and checked: the declared sizes must describe a valid VolumeGeometry, fit the
-// 4 GiB cap, and agree with the bytes in the file (raw) or be possible from them (compressed),
-// so a corrupt header never makes VTK allocate. A .vti file's WholeExtent is checked the
-// same way. Errors: std::invalid_argument naming the file and the problem.
+// Units and frames as in imaging/volume.h: spacing and origin in mm, `direction` columns
+// the index axes in the image frame. Poses, timestamp and frame index are not stored in
+// these files: read volumes get identity poses and time 0 (plus_sequence.h carries them).
+// Only uint8 single-component data makes a Volume; headers are checked (4 GiB cap, sizes
+// against the file) before VTK or anything else allocates.
+// Errors: std::invalid_argument naming the file and the problem (another scalar type, a
+// corrupt or lying header, an unknown extension, a failed write).
+// Details: docs/imaging.md#volume-files-imagingiovolume_ioh
 #pragma once
 
 #include <filesystem>

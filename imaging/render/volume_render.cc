@@ -20,21 +20,21 @@ namespace {
 
 constexpr int kPanelTargetPx = 320;  // the longest volume edge is drawn about this long
 constexpr int kLeftMargin = 64;
-constexpr int kGap = 64;             // between columns (room for the next vertical ticks)
-constexpr int kHeader = 44;          // title lines
-constexpr int kPanelTitle = 40;      // above each panel: title, vertical axis name
-constexpr int kPanelBottom = 40;     // below each panel: ticks and axis name
-constexpr int kLegend = 96;          // legend and scale bar
+constexpr int kGap = 64;          // between columns (room for the next vertical ticks)
+constexpr int kHeader = 44;       // title lines
+constexpr int kPanelTitle = 40;   // above each panel: title, vertical axis name
+constexpr int kPanelBottom = 40;  // below each panel: ticks and axis name
+constexpr int kLegend = 96;       // legend and scale bar
 constexpr int kMinWidth = 760;
 
 const cv::Scalar kBackground(32, 32, 32);
 const cv::Scalar kText(235, 235, 235);
 const cv::Scalar kDimText(170, 170, 170);
-const cv::Scalar kAxisColour(0, 220, 255);     // yellow: detected axis
-const cv::Scalar kTipColour(60, 60, 255);      // red: detected tip
-const cv::Scalar kTargetColour(60, 220, 60);   // green: detected target
-const cv::Scalar kTruthColour(255, 230, 0);    // cyan: ground truth
-const cv::Scalar kSliceTick(255, 80, 255);     // magenta: where the other slices are
+const cv::Scalar kAxisColour(0, 220, 255);    // yellow: detected axis
+const cv::Scalar kTipColour(60, 60, 255);     // red: detected tip
+const cv::Scalar kTargetColour(60, 220, 60);  // green: detected target
+const cv::Scalar kTruthColour(255, 230, 0);   // cyan: ground truth
+const cv::Scalar kSliceTick(255, 80, 255);    // magenta: where the other slices are
 constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
 constexpr double kFontScale = 0.42;
 
@@ -90,8 +90,7 @@ Eigen::Vector2d IndexToPanelPx(const Volume& v, const SlicePanelLayout::Panel& p
 }
 
 // The 2D image (dims[v] rows × dims[u] columns) of a slice or a MIP.
-cv::Mat PanelImage(const Volume& volume, const SlicePanelLayout::Panel& p, bool mip,
-                   int slice) {
+cv::Mat PanelImage(const Volume& volume, const SlicePanelLayout::Panel& p, bool mip, int slice) {
   const Eigen::Vector3i& d = volume.dims();
   cv::Mat img(d[p.v_axis], d[p.u_axis], CV_8U, cv::Scalar(0));
   int idx[3];
@@ -187,14 +186,12 @@ void DrawOverlaySet(cv::Mat& canvas, const Volume& volume, const SlicePanelLayou
       }
     }
     if (tip) {
-      const Eigen::Vector2d q =
-          IndexToPanelPx(volume, p, volume.PhysicalToIndex(*tip)) - off;
+      const Eigen::Vector2d q = IndexToPanelPx(volume, p, volume.PhysicalToIndex(*tip)) - off;
       cv::drawMarker(roi, cv::Point(cvRound(q.x()), cvRound(q.y())), style.tip, style.tip_marker,
                      14, style.thickness, cv::LINE_AA);
     }
     if (target) {
-      const Eigen::Vector2d q =
-          IndexToPanelPx(volume, p, volume.PhysicalToIndex(*target)) - off;
+      const Eigen::Vector2d q = IndexToPanelPx(volume, p, volume.PhysicalToIndex(*target)) - off;
       cv::drawMarker(roi, cv::Point(cvRound(q.x()), cvRound(q.y())), style.target,
                      style.target_marker, 14, style.thickness, cv::LINE_AA);
     }
@@ -226,9 +223,9 @@ void DrawTicks(cv::Mat& canvas, const Volume& volume, const SlicePanelLayout& la
       PutText(canvas, label, {x - 7 - TextWidth(label), y + 5}, kDimText);
     }
   }
-  const std::string name =
-      frame_coords ? std::string(kAxisNames[axis]) + " (mm)"
-                   : std::string(kIndexNames[axis]) + " axis (mm from voxel 0)";
+  const std::string name = frame_coords
+                               ? std::string(kAxisNames[axis]) + " (mm)"
+                               : std::string(kIndexNames[axis]) + " axis (mm from voxel 0)";
   if (horizontal) {
     PutText(canvas, name + "  ->", {p.x0 + p.width / 2 - TextWidth(name) / 2, p.y0 + p.height + 34},
             kText);
@@ -315,9 +312,9 @@ void RenderSlicesPng(const Volume& volume, const RenderOverlays& overlays,
     const bool mip = n >= 3;
     const int slice = static_cast<int>(layout.slice_index[p.normal_axis]);
     cv::Mat img = PanelImage(volume, p, mip, slice);
-    const double scale = std::min(static_cast<double>(p.width) / img.cols,
-                                  static_cast<double>(p.height) / img.rows);
-    const int interp = scale >= 2.0 ? cv::INTER_NEAREST
+    const double scale =
+        std::min(static_cast<double>(p.width) / img.cols, static_cast<double>(p.height) / img.rows);
+    const int interp = scale >= 2.0   ? cv::INTER_NEAREST
                        : scale >= 1.0 ? cv::INTER_LINEAR
                                       : cv::INTER_AREA;
     cv::Mat resized, bgr;
@@ -331,9 +328,8 @@ void RenderSlicesPng(const Volume& volume, const RenderOverlays& overlays,
     if (mip) {
       title = std::string("MIP along ") + kAxisNames[n_ax];
     } else {
-      const double pos = IsIdentityDirection(volume)
-                             ? volume.origin_mm()[n_ax] + slice * s[n_ax]
-                             : slice * s[n_ax];
+      const double pos = IsIdentityDirection(volume) ? volume.origin_mm()[n_ax] + slice * s[n_ax]
+                                                     : slice * s[n_ax];
       title = std::string("slice ") + kAxisNames[n_ax] + " = " + Fmt("%.1f", pos) + " mm (" +
               kIndexNames[n_ax] + " " + std::to_string(slice) + ")";
       // Where the other two slices cut this one.
@@ -353,8 +349,8 @@ void RenderSlicesPng(const Volume& volume, const RenderOverlays& overlays,
   // Overlays: truth first (thin, dashed, cyan) so the detections stay on top.
   if (overlays.truth) {
     const FrameGroundTruth& t = *overlays.truth;
-    OverlayStyle truth{kTruthColour, kTruthColour, kTruthColour, true, cv::MARKER_CROSS,
-                       cv::MARKER_SQUARE, 1};
+    OverlayStyle truth{
+        kTruthColour, kTruthColour, kTruthColour, true, cv::MARKER_CROSS, cv::MARKER_SQUARE, 1};
     std::optional<Eigen::Vector3d> none;
     DrawOverlaySet(canvas, volume, layout,
                    t.catheter_visible ? std::optional(t.axis_point_mm) : none,
@@ -408,8 +404,7 @@ void RenderSlicesPng(const Volume& volume, const RenderOverlays& overlays,
       entry("true tip " + FmtPoint(t.tip_mm), kTruthColour, cv::MARKER_CROSS, false, false);
     }
     if (t.target_visible) {
-      entry("true target " + FmtPoint(t.target_mm), kTruthColour, cv::MARKER_SQUARE, false,
-            false);
+      entry("true target " + FmtPoint(t.target_mm), kTruthColour, cv::MARKER_SQUARE, false, false);
     }
     if (!t.catheter_visible && !t.target_visible) {
       PutText(canvas, "ground truth: catheter and target not visible", {x, y}, kTruthColour);

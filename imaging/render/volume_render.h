@@ -31,7 +31,7 @@ struct RenderOverlays {
   // Where the three orthogonal slices cross; default: the tip, else the truth tip (when
   // the catheter is visible), else the volume centre. Clamped into the volume.
   std::optional<Eigen::Vector3d> slice_point_mm;
-  std::string title;                              // first line of the caption (optional)
+  std::string title;  // first line of the caption (optional)
 };
 
 // Layout of the 2D panel image, for callers (and tests) that need to find things in it.
@@ -40,7 +40,7 @@ struct RenderOverlays {
 // axis (x, x, y) and the vertical one the second (y, z, z), increasing downwards.
 struct SlicePanelLayout {
   struct Panel {
-    int x0 = 0, y0 = 0;      // top-left pixel of the volume image inside the PNG
+    int x0 = 0, y0 = 0;  // top-left pixel of the volume image inside the PNG
     int width = 0, height = 0;
     int u_axis = 0, v_axis = 1;  // index axes shown horizontally / vertically
     int normal_axis = 2;         // the axis sliced / projected along

@@ -1,12 +1,6 @@
 // The 3D isosurface view (VTK, offscreen). VTK 9.1 on this platform has neither OSMesa nor
 // EGL, so its offscreen window still needs an X server, and without one it aborts the
 // process: XDisplayAvailable() is checked before any render window is created.
-#include <algorithm>
-#include <cmath>
-#include <cstdlib>
-#include <cstring>
-#include <stdexcept>
-#include <string>
 #include <vtkActor.h>
 #include <vtkCamera.h>
 #include <vtkColorTransferFunction.h>
@@ -33,6 +27,13 @@
 #include <vtkVolume.h>
 #include <vtkVolumeProperty.h>
 #include <vtkWindowToImageFilter.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+#include <string>
 
 #include "imaging/render/render_overlays_check.h"
 #include "imaging/render/volume_render.h"
@@ -137,14 +138,14 @@ void RenderIsosurfacePng(const Volume& volume, double iso_level, const RenderOve
   if (!std::isfinite(iso_level)) {
     throw std::invalid_argument("isosurface: iso level is not finite");
   }
-  if (options.width < 16 || options.height < 16 || options.width > 8192 ||
-      options.height > 8192) {
+  if (options.width < 16 || options.height < 16 || options.width > 8192 || options.height > 8192) {
     throw std::invalid_argument("isosurface: image size must be 16..8192 px");
   }
   CheckOverlays(overlays);
   std::string why;
   if (!XDisplayAvailable(&why)) {
-    throw std::runtime_error(std::string("--3d needs an X server (").append(why).append("); run under xvfb-run -a"));
+    throw std::runtime_error(
+        std::string("--3d needs an X server (").append(why).append("); run under xvfb-run -a"));
   }
 
   vtkSmartPointer<vtkImageData> image = ToImageData(volume);
@@ -220,8 +221,8 @@ void RenderIsosurfacePng(const Volume& volume, double iso_level, const RenderOve
       frame_bounds[2 * i + 1] = std::max(frame_bounds[2 * i + 1], q[i]);
     }
   }
-  const double red[3] = {1.0, 0.25, 0.25}, green[3] = {0.3, 0.9, 0.3},
-               yellow[3] = {1.0, 0.86, 0.0}, cyan[3] = {0.0, 0.9, 1.0};
+  const double red[3] = {1.0, 0.25, 0.25}, green[3] = {0.3, 0.9, 0.3}, yellow[3] = {1.0, 0.86, 0.0},
+               cyan[3] = {0.0, 0.9, 1.0};
   if (overlays.axis_point_mm && overlays.axis_direction) {
     AddAxis(renderer, *overlays.axis_point_mm, *overlays.axis_direction, frame_bounds,
             marker_r * 0.3, yellow, 0.8);
@@ -240,14 +241,15 @@ void RenderIsosurfacePng(const Volume& volume, double iso_level, const RenderOve
     if (t.target_visible) AddSphere(renderer, t.target_mm, marker_r * 1.4, cyan, 1.0, true);
   }
 
-  std::string caption = overlays.title.empty() ? std::string("echoservo render --3d")
-                                               : overlays.title;
+  std::string caption =
+      overlays.title.empty() ? std::string("echoservo render --3d") : overlays.title;
   char line[160];
   std::snprintf(line, sizeof line, "\nisosurface at %.0f; box %.1f x %.1f x %.1f mm", iso_level,
                 bounds[1] - bounds[0], bounds[3] - bounds[2], bounds[5] - bounds[4]);
   caption += line;
   if (overlays.tip_mm) caption.append("\n").append(FmtPoint("tip (red)", *overlays.tip_mm));
-  if (overlays.target_mm) caption.append("\n").append(FmtPoint("target (green)", *overlays.target_mm));
+  if (overlays.target_mm)
+    caption.append("\n").append(FmtPoint("target (green)", *overlays.target_mm));
   if (overlays.axis_point_mm) caption += "\naxis: yellow";
   if (overlays.truth) caption += "\nground truth: cyan";
   vtkNew<vtkTextActor> text;

@@ -7,7 +7,8 @@ namespace echoservo::imaging::sim {
 void PlaceCatheterScene(const CatheterScenePose& pose, SimulatedScannerOptions& o) {
   constexpr double kDeg = std::numbers::pi / 180.0;
   constexpr double kAnnulusBeyondTipMm = 15.0;
-  const double tip_from_base_mm = o.catheter_geometry.sheath_length_mm + o.catheter_geometry.wire_protrusion_mm;
+  const double tip_from_base_mm =
+      o.catheter_geometry.sheath_length_mm + o.catheter_geometry.wire_protrusion_mm;
   Eigen::Isometry3d base = Eigen::Isometry3d::Identity();
   base.linear() = (Eigen::AngleAxisd(pose.yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
                    Eigen::AngleAxisd((90.0 - pose.tilt_deg) * kDeg, Eigen::Vector3d::UnitY()))

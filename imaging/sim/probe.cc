@@ -13,8 +13,8 @@
 namespace echoservo::imaging::sim {
 namespace {
 
-void RequireRange(double v, double lo, double hi, const std::string& where,
-                  const std::string& field, bool open_low = false) {
+void RequireProbeRange(double v, double lo, double hi, const std::string& where,
+                       const std::string& field, bool open_low = false) {
   if (!(std::isfinite(v) && (open_low ? v > lo : v >= lo) && v <= hi)) {
     std::ostringstream os;
     os << where << ": " << field << " must be in " << (open_low ? "(" : "[") << lo << ", " << hi
@@ -27,12 +27,12 @@ void RequireRange(double v, double lo, double hi, const std::string& where,
 
 void ProbeGeometry::Validate(const std::string& where) const {
   const double max_angle = 170.0 * std::numbers::pi / 180.0;
-  RequireRange(azimuth_rad, 0.0, max_angle, where, "azimuth_rad", true);
-  RequireRange(elevation_rad, 0.0, max_angle, where, "elevation_rad", true);
-  RequireRange(range_mm, 0.0, 500.0, where, "range_mm", true);
-  RequireRange(n_azimuth, 2, 1024, where, "n_azimuth");
-  RequireRange(n_elevation, 2, 1024, where, "n_elevation");
-  RequireRange(n_samples, 8, 8192, where, "n_samples");
+  RequireProbeRange(azimuth_rad, 0.0, max_angle, where, "azimuth_rad", true);
+  RequireProbeRange(elevation_rad, 0.0, max_angle, where, "elevation_rad", true);
+  RequireProbeRange(range_mm, 0.0, 500.0, where, "range_mm", true);
+  RequireProbeRange(n_azimuth, 2, 1024, where, "n_azimuth");
+  RequireProbeRange(n_elevation, 2, 1024, where, "n_elevation");
+  RequireProbeRange(n_samples, 8, 8192, where, "n_samples");
   MakeVolumeGeometry().Validate(where + " volume_dims");
 }
 
@@ -84,7 +84,8 @@ ScanConverter::ScanConverter(const ProbeGeometry& probe)
     auto& runs = row_run_list[static_cast<std::size_t>(row)];
     bool in_run = false;
     for (int i = 0; i < d.x(); ++i) {
-      const Eigen::Vector3d p = geometry_.origin_mm + Eigen::Vector3d(i, j, k).cwiseProduct(geometry_.spacing_mm);
+      const Eigen::Vector3d p =
+          geometry_.origin_mm + Eigen::Vector3d(i, j, k).cwiseProduct(geometry_.spacing_mm);
       Eigen::Vector3d q;
       if (!probe.ToPolar(p, &q)) {
         in_run = false;
@@ -94,12 +95,15 @@ ScanConverter::ScanConverter(const ProbeGeometry& probe)
       const double ie = std::min(q.y(), probe.n_elevation - 1.000001);
       const double s = std::min(q.z(), probe.n_samples - 1.000001);
       const int a0 = static_cast<int>(ia), e0 = static_cast<int>(ie), s0 = static_cast<int>(s);
-      auto w8 = [](double f) { return static_cast<std::uint8_t>(std::min(255.0, std::round(f * 256.0))); };
+      auto w8 = [](double f) {
+        return static_cast<std::uint8_t>(std::min(255.0, std::round(f * 256.0)));
+      };
       const std::uint32_t voxel = static_cast<std::uint32_t>(i + d.x() * row);
       if (!in_run) runs.push_back({voxel, 0, static_cast<std::uint32_t>(entries.size())});
       in_run = true;
       ++runs.back().length;
-      entries.push_back({static_cast<std::uint32_t>(probe.PolarIndex(a0, e0, s0)), w8(ia - a0), w8(ie - e0), w8(s - s0), 0});
+      entries.push_back({static_cast<std::uint32_t>(probe.PolarIndex(a0, e0, s0)), w8(ia - a0),
+                         w8(ie - e0), w8(s - s0), 0});
     }
   });
   row_runs_.push_back(0);
@@ -110,7 +114,8 @@ ScanConverter::ScanConverter(const ProbeGeometry& probe)
       runs_.push_back(r);
     }
     row_runs_.push_back(static_cast<std::uint32_t>(runs_.size()));
-    lut_.insert(lut_.end(), row_entries[static_cast<std::size_t>(row)].begin(), row_entries[static_cast<std::size_t>(row)].end());
+    lut_.insert(lut_.end(), row_entries[static_cast<std::size_t>(row)].begin(),
+                row_entries[static_cast<std::size_t>(row)].end());
   }
 }
 
@@ -130,15 +135,19 @@ void ScanConverter::Convert(std::span<const std::uint8_t> polar, Volume& volume)
     for (int row = rr.begin(); row != rr.end(); ++row) {
       std::uint8_t* out = dst + static_cast<std::size_t>(row) * nx;
       std::memset(out, 0, nx);
-      for (std::uint32_t ri = row_runs_[static_cast<std::size_t>(row)]; ri < row_runs_[static_cast<std::size_t>(row) + 1]; ++ri) {
+      for (std::uint32_t ri = row_runs_[static_cast<std::size_t>(row)];
+           ri < row_runs_[static_cast<std::size_t>(row) + 1]; ++ri) {
         const Run run = runs_[ri];
         const Entry* e = lut_.data() + run.entry;
         std::uint8_t* o = dst + run.voxel;
         for (std::uint32_t v = 0; v < run.length; ++v) {
           const std::uint8_t* p = src + e[v].base;
           const int ws = e[v].ws, wa = e[v].wa, we = e[v].we;
-          auto lerp_a = [&](const std::uint8_t* q) { return (q[0] << 8) + (q[da] - q[0]) * wa; };  // ×256
-          const int c00 = lerp_a(p), c10 = lerp_a(p + ds), c01 = lerp_a(p + de), c11 = lerp_a(p + de + ds);
+          auto lerp_a = [&](const std::uint8_t* q) {
+            return (q[0] << 8) + (q[da] - q[0]) * wa;
+          };  // ×256
+          const int c00 = lerp_a(p), c10 = lerp_a(p + ds), c01 = lerp_a(p + de),
+                    c11 = lerp_a(p + de + ds);
           const int c0 = (c00 << 8) + (c10 - c00) * ws;  // ×65536
           const int c1 = (c01 << 8) + (c11 - c01) * ws;
           const int c = ((c0 + 128) >> 8) * 256 + ((c1 - c0) >> 8) * we;  // ×65536

@@ -2,17 +2,12 @@
 // of beams, and the scan conversion of the polar (beam × range-sample) image into a
 // Cartesian Volume.
 //
-// Units: mm, rad. Probe frame: origin at the array centre (apex of the pyramid), +z along
-// the central beam (depth), +x azimuth (lateral), +y elevation. Beam (ia, ie) points along
-//     d = (sin az · cos el, sin el, cos az · cos el),
-//     az = −azimuth/2 + ia · azimuth/(n_azimuth − 1), el likewise,
-// and range sample s lies at displayed range s · range/(n_samples − 1). Ranges are
-// *displayed* ranges: the scanner converts echo time to range with its assumed speed of
-// sound, so a reflector at true range r in a medium of speed c shows at r · c_assumed / c.
-// The image frame of the volumes is the displayed probe frame (image_to_probe = identity);
-// `volume_dims` voxels span the pyramid's bounding box.
-// Polar buffers are uint8, azimuth fastest: index = (ie · n_samples + s) · n_azimuth + ia
-// (a row of voxels along x then reads nearly consecutive bytes during scan conversion).
+// Units: mm, rad. Probe frame: origin at the array centre (the pyramid's apex), +z along the
+// central beam (depth), +x azimuth, +y elevation. Ranges are *displayed* ranges (echo time ×
+// the scanner's assumed sound speed). The volumes' image frame is the displayed probe frame
+// (image_to_probe = identity). Polar buffers are uint8, azimuth fastest (PolarIndex).
+// Errors: Validate throws std::invalid_argument naming the field.
+// Details: docs/simulated_scanner.md#frames-mm-s-rad
 #pragma once
 
 #include <Eigen/Core>
@@ -28,18 +23,19 @@ namespace echoservo::imaging::sim {
 struct ProbeGeometry {
   double azimuth_rad = 60.0 * 3.14159265358979323846 / 180.0;    // (0, 170°]
   double elevation_rad = 30.0 * 3.14159265358979323846 / 180.0;  // (0, 170°]
-  double range_mm = 120.0;                                        // displayed depth, (0, 500]
-  int n_azimuth = 128;                                            // [2, 1024]
-  int n_elevation = 64;                                           // [2, 1024]
-  int n_samples = 512;                                            // [8, 8192]
-  Eigen::Vector3i volume_dims{160, 148, 208};                     // voxels x, y, z
+  double range_mm = 120.0;                                       // displayed depth, (0, 500]
+  int n_azimuth = 128;                                           // [2, 1024]
+  int n_elevation = 64;                                          // [2, 1024]
+  int n_samples = 512;                                           // [8, 8192]
+  Eigen::Vector3i volume_dims{160, 148, 208};                    // voxels x, y, z
 
   // Throws std::invalid_argument naming the field (prefixed by `where`).
   void Validate(const std::string& where = "probe geometry") const;
 
   std::size_t PolarIndex(int ia, int ie, int s) const {
     return (static_cast<std::size_t>(ie) * static_cast<std::size_t>(n_samples) +
-            static_cast<std::size_t>(s)) * static_cast<std::size_t>(n_azimuth) +
+            static_cast<std::size_t>(s)) *
+               static_cast<std::size_t>(n_azimuth) +
            static_cast<std::size_t>(ia);
   }
   int beam_count() const { return n_azimuth * n_elevation; }
@@ -72,14 +68,14 @@ class ScanConverter {
     std::uint32_t base;  // polar index of the (ia, ie, s) corner
     std::uint8_t wa, we, ws, pad;
   };
-  struct Run {               // consecutive inside voxels of one x row
-    std::uint32_t voxel;     // linear index of the first
+  struct Run {            // consecutive inside voxels of one x row
+    std::uint32_t voxel;  // linear index of the first
     std::uint32_t length;
-    std::uint32_t entry;     // index of its first Entry
+    std::uint32_t entry;  // index of its first Entry
   };
   ProbeGeometry probe_;
   VolumeGeometry geometry_;
-  std::vector<Entry> lut_;           // inside voxels only, in voxel order
+  std::vector<Entry> lut_;  // inside voxels only, in voxel order
   std::vector<Run> runs_;
   std::vector<std::uint32_t> row_runs_;  // runs of x row r: [row_runs_[r], row_runs_[r + 1])
 };

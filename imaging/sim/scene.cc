@@ -17,8 +17,8 @@ void Require(bool ok, const std::string& where, const std::string& field, const 
   if (!ok) throw std::invalid_argument(where + ": " + field + " " + what);
 }
 
-void RequireRange(double v, double lo, double hi, const std::string& where,
-                  const std::string& field) {
+void RequireSceneRange(double v, double lo, double hi, const std::string& where,
+                       const std::string& field) {
   if (!(std::isfinite(v) && v >= lo && v <= hi)) {
     std::ostringstream os;
     os << where << ": " << field << " must be in [" << lo << ", " << hi << "], got " << v;
@@ -37,12 +37,12 @@ void RequirePositive(double v, const std::string& where, const std::string& fiel
 }  // namespace
 
 void AcousticProperties::Validate(const std::string& where) const {
-  RequireRange(specular, 0, 10, where, "specular");
-  RequireRange(specularity, 0, 1000, where, "specularity");
-  RequireRange(diffuse, 0, 10, where, "diffuse");
-  RequireRange(transmission, 0, 1, where, "transmission");
-  RequireRange(scatter, 0, 10, where, "scatter");
-  RequireRange(reverb_count, 0, 16, where, "reverb_count");
+  RequireSceneRange(specular, 0, 10, where, "specular");
+  RequireSceneRange(specularity, 0, 1000, where, "specularity");
+  RequireSceneRange(diffuse, 0, 10, where, "diffuse");
+  RequireSceneRange(transmission, 0, 1, where, "transmission");
+  RequireSceneRange(scatter, 0, 10, where, "scatter");
+  RequireSceneRange(reverb_count, 0, 16, where, "reverb_count");
   Require(std::isfinite(reverb_decay) && reverb_decay >= 0 && reverb_decay < 1, where,
           "reverb_decay", "must be in [0, 1)");
 }
@@ -89,7 +89,7 @@ TriangleMesh MakeCylinder(double radius_mm, double length_mm, int segments) {
   const std::string where = "MakeCylinder";
   RequirePositive(radius_mm, where, "radius_mm");
   RequirePositive(length_mm, where, "length_mm");
-  RequireRange(segments, 3, 4096, where, "segments");
+  RequireSceneRange(segments, 3, 4096, where, "segments");
   TriangleMesh m;
   const int n = segments;
   for (int ring = 0; ring < 2; ++ring) {
@@ -139,18 +139,20 @@ double SaddleHeightMm(double diameter_mm, double saddle_mm, double x_mm, double 
   return saddle_mm * rho2 * std::cos(2.0 * phi);
 }
 
-TriangleMesh MakeSaddleDisc(double diameter_mm, double thickness_mm, double saddle_mm,
-                            int rings, int segments) {
+TriangleMesh MakeSaddleDisc(double diameter_mm, double thickness_mm, double saddle_mm, int rings,
+                            int segments) {
   const std::string where = "MakeSaddleDisc";
   RequirePositive(diameter_mm, where, "diameter_mm");
   RequirePositive(thickness_mm, where, "thickness_mm");
-  RequireRange(saddle_mm, -diameter_mm, diameter_mm, where, "saddle_mm");
-  RequireRange(rings, 1, 1024, where, "rings");
-  RequireRange(segments, 3, 4096, where, "segments");
+  RequireSceneRange(saddle_mm, -diameter_mm, diameter_mm, where, "saddle_mm");
+  RequireSceneRange(rings, 1, 1024, where, "rings");
+  RequireSceneRange(segments, 3, 4096, where, "segments");
   TriangleMesh m;
   const double r = 0.5 * diameter_mm;
   // Vertex (side s ∈ {0 bottom, 1 top}, ring k ∈ [1, rings], segment i); centres first.
-  auto vid = [&](int side, int k, int i) { return 2 + side * rings * segments + (k - 1) * segments + i; };
+  auto vid = [&](int side, int k, int i) {
+    return 2 + side * rings * segments + (k - 1) * segments + i;
+  };
   for (int side = 0; side < 2; ++side) {
     const double dz = (side == 0 ? -0.5 : 0.5) * thickness_mm;
     m.vertices.emplace_back(0.f, 0.f, static_cast<float>(dz));
@@ -162,8 +164,9 @@ TriangleMesh MakeSaddleDisc(double diameter_mm, double thickness_mm, double sadd
       for (int i = 0; i < segments; ++i) {
         const double a = 2.0 * std::numbers::pi * i / segments;
         const double x = rho * std::cos(a), y = rho * std::sin(a);
-        m.vertices.emplace_back(static_cast<float>(x), static_cast<float>(y),
-                                static_cast<float>(SaddleHeightMm(diameter_mm, saddle_mm, x, y) + dz));
+        m.vertices.emplace_back(
+            static_cast<float>(x), static_cast<float>(y),
+            static_cast<float>(SaddleHeightMm(diameter_mm, saddle_mm, x, y) + dz));
       }
     }
   }
@@ -171,18 +174,27 @@ TriangleMesh MakeSaddleDisc(double diameter_mm, double thickness_mm, double sadd
     const bool top = side == 1;
     for (int i = 0; i < segments; ++i) {
       const int j = (i + 1) % segments;
-      if (top) m.triangles.emplace_back(1, vid(1, 1, i), vid(1, 1, j));
-      else m.triangles.emplace_back(0, vid(0, 1, j), vid(0, 1, i));
+      if (top)
+        m.triangles.emplace_back(1, vid(1, 1, i), vid(1, 1, j));
+      else
+        m.triangles.emplace_back(0, vid(0, 1, j), vid(0, 1, i));
       for (int k = 1; k < rings; ++k) {
-        const int a = vid(side, k, i), b = vid(side, k, j), c = vid(side, k + 1, j), d = vid(side, k + 1, i);
-        if (top) { m.triangles.emplace_back(a, d, c); m.triangles.emplace_back(a, c, b); }
-        else { m.triangles.emplace_back(a, b, c); m.triangles.emplace_back(a, c, d); }
+        const int a = vid(side, k, i), b = vid(side, k, j), c = vid(side, k + 1, j),
+                  d = vid(side, k + 1, i);
+        if (top) {
+          m.triangles.emplace_back(a, d, c);
+          m.triangles.emplace_back(a, c, b);
+        } else {
+          m.triangles.emplace_back(a, b, c);
+          m.triangles.emplace_back(a, c, d);
+        }
       }
     }
   }
   for (int i = 0; i < segments; ++i) {  // rim
     const int j = (i + 1) % segments;
-    const int b0 = vid(0, rings, i), b1 = vid(0, rings, j), t0 = vid(1, rings, i), t1 = vid(1, rings, j);
+    const int b0 = vid(0, rings, i), b1 = vid(0, rings, j), t0 = vid(1, rings, i),
+              t1 = vid(1, rings, j);
     m.triangles.emplace_back(b0, b1, t1);
     m.triangles.emplace_back(b0, t1, t0);
   }
@@ -202,7 +214,8 @@ TriangleMesh LoadObj(const std::string& path) {
     ls >> tag;
     if (tag == "v") {
       float x, y, z;
-      Require(static_cast<bool>(ls >> x >> y >> z), "LoadMeshFile", "path", "'" + path + "': bad vertex line");
+      Require(static_cast<bool>(ls >> x >> y >> z), "LoadMeshFile", "path",
+              "'" + path + "': bad vertex line");
       m.vertices.emplace_back(x, y, z);
     } else if (tag == "f") {
       std::vector<int> idx;
@@ -212,7 +225,8 @@ TriangleMesh LoadObj(const std::string& path) {
         v = v < 0 ? static_cast<int>(m.vertices.size()) + v : v - 1;
         idx.push_back(v);
       }
-      for (std::size_t k = 2; k < idx.size(); ++k) m.triangles.emplace_back(idx[0], idx[k - 1], idx[k]);
+      for (std::size_t k = 2; k < idx.size(); ++k)
+        m.triangles.emplace_back(idx[0], idx[k - 1], idx[k]);
     }
   }
   return m;
@@ -248,7 +262,10 @@ TriangleMesh LoadStl(const std::string& path) {
       float x, y, z;
       ss >> x >> y >> z;
       v.insert(v.end(), {x, y, z});
-      if (v.size() == 9) { add(v.data()); v.clear(); }
+      if (v.size() == 9) {
+        add(v.data());
+        v.clear();
+      }
     }
   }
   return m;
@@ -258,11 +275,15 @@ TriangleMesh LoadStl(const std::string& path) {
 
 TriangleMesh LoadMeshFile(const std::string& path) {
   std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   TriangleMesh m;
-  if (ext == ".obj") m = LoadObj(path);
-  else if (ext == ".stl") m = LoadStl(path);
-  else throw std::invalid_argument("LoadMeshFile: path '" + path + "' must end in .obj or .stl");
+  if (ext == ".obj")
+    m = LoadObj(path);
+  else if (ext == ".stl")
+    m = LoadStl(path);
+  else
+    throw std::invalid_argument("LoadMeshFile: path '" + path + "' must end in .obj or .stl");
   Require(!m.triangles.empty(), "LoadMeshFile", "path", "'" + path + "' holds no triangles");
   return m;
 }
@@ -300,7 +321,11 @@ Scene::Scene() : impl_(std::make_unique<Impl>()) {
   impl_->device = rtcNewDevice(nullptr);
   if (!impl_->device) throw std::runtime_error("Scene: rtcNewDevice failed");
   impl_->scene = rtcNewScene(impl_->device);
-  rtcSetSceneFlags(impl_->scene, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST));  // robust: rays through shared vertices (the truth ray hits the disc centre)
+  rtcSetSceneFlags(
+      impl_->scene,
+      static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_DYNAMIC |
+                                 RTC_SCENE_FLAG_ROBUST));  // robust: rays through shared vertices
+                                                           // (the truth ray hits the disc centre)
   rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_LOW);
 }
 
@@ -318,7 +343,8 @@ int Scene::AddMesh(TriangleMesh mesh, const AcousticProperties& properties,
   const int nv = static_cast<int>(mesh.vertices.size());
   for (const auto& t : mesh.triangles)
     Require(t.minCoeff() >= 0 && t.maxCoeff() < nv, where, "mesh.triangles", "index out of range");
-  for (const auto& v : mesh.vertices) Require(v.allFinite(), where, "mesh.vertices", "must be finite");
+  for (const auto& v : mesh.vertices)
+    Require(v.allFinite(), where, "mesh.vertices", "must be finite");
   Require(mesh_to_world.matrix().allFinite(), where, "mesh_to_world", "must be finite");
   Impl::Entry e;
   e.mesh = std::move(mesh);
@@ -327,8 +353,9 @@ int Scene::AddMesh(TriangleMesh mesh, const AcousticProperties& properties,
   e.geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
   rtcSetNewGeometryBuffer(e.geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
                           e.mesh.vertices.size());
-  auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-      e.geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), e.mesh.triangles.size()));
+  auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(e.geom, RTC_BUFFER_TYPE_INDEX, 0,
+                                                             RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                                             e.mesh.triangles.size()));
   for (std::size_t i = 0; i < e.mesh.triangles.size(); ++i)
     for (int k = 0; k < 3; ++k) idx[3 * i + k] = static_cast<unsigned>(e.mesh.triangles[i][k]);
   impl_->WriteVertices(e);
@@ -352,8 +379,10 @@ void Scene::SetEnabled(int id, bool enabled) {
   auto& e = impl_->entries[static_cast<std::size_t>(id)];
   if (e.enabled == enabled) return;
   e.enabled = enabled;
-  if (enabled) rtcEnableGeometry(e.geom);
-  else rtcDisableGeometry(e.geom);
+  if (enabled)
+    rtcEnableGeometry(e.geom);
+  else
+    rtcDisableGeometry(e.geom);
   rtcCommitGeometry(e.geom);
 }
 
@@ -393,8 +422,10 @@ int Scene::TraceAll(const Eigen::Vector3f& origin, const Eigen::Vector3f& direct
     rtcIntersect1(impl_->scene, &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
     const int mesh = impl_->geom_to_mesh[rh.hit.geomID];
-    const float ng = std::sqrt(rh.hit.Ng_x * rh.hit.Ng_x + rh.hit.Ng_y * rh.hit.Ng_y + rh.hit.Ng_z * rh.hit.Ng_z);
-    const float d = rh.hit.Ng_x * direction.x() + rh.hit.Ng_y * direction.y() + rh.hit.Ng_z * direction.z();
+    const float ng = std::sqrt(rh.hit.Ng_x * rh.hit.Ng_x + rh.hit.Ng_y * rh.hit.Ng_y +
+                               rh.hit.Ng_z * rh.hit.Ng_z);
+    const float d =
+        rh.hit.Ng_x * direction.x() + rh.hit.Ng_y * direction.y() + rh.hit.Ng_z * direction.z();
     RayHit& h = hits[n++];
     h.t_mm = rh.ray.tfar;
     h.cos_incidence = ng > 0 ? std::min(1.0f, std::abs(d) / ng) : 0.0f;

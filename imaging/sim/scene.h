@@ -31,14 +31,14 @@ struct TriangleMesh {
 // the path length through the mesh (its diameter along the beam), each `reverb_decay`
 // times the previous one.
 struct AcousticProperties {
-  double specular = 0.5;        // [0, 10]
-  double specularity = 4.0;     // exponent p of |cos θ|^p, [0, 1000]
-  double diffuse = 0.02;        // [0, 10]
-  double transmission = 0.8;    // per surface crossing, [0, 1]
-  double scatter = 0.0;         // speckle amplitude inside the closed mesh, [0, 10]
+  double specular = 0.5;      // [0, 10]
+  double specularity = 4.0;   // exponent p of |cos θ|^p, [0, 1000]
+  double diffuse = 0.02;      // [0, 10]
+  double transmission = 0.8;  // per surface crossing, [0, 1]
+  double scatter = 0.0;       // speckle amplitude inside the closed mesh, [0, 10]
   bool is_metal = false;
-  int reverb_count = 6;         // [0, 16]
-  double reverb_decay = 0.6;    // [0, 1)
+  int reverb_count = 6;       // [0, 16]
+  double reverb_decay = 0.6;  // [0, 1)
   // Throws std::invalid_argument naming the field (prefixed by `where`).
   void Validate(const std::string& where = "acoustic properties") const;
 
@@ -61,17 +61,18 @@ TriangleMesh MakeSaddleDisc(double diameter_mm, double thickness_mm, double sadd
 // Mid-surface height of MakeSaddleDisc at local (x, y) (for truth computations).
 double SaddleHeightMm(double diameter_mm, double saddle_mm, double x_mm, double y_mm);
 // Wavefront OBJ (v / f lines; polygons fan-triangulated; "f a/b/c" forms accepted) or
-// binary/ASCII STL, chosen by extension (.obj / .stl). Throws std::invalid_argument naming the path.
+// binary/ASCII STL, chosen by extension (.obj / .stl). Throws std::invalid_argument naming the
+// path.
 TriangleMesh LoadMeshFile(const std::string& path);
 
 // One surface along a ray.
 struct RayHit {
-  float t_mm = 0.0f;          // distance along the (unit) ray
-  float cos_incidence = 0.0f; // |cos θ|
-  int mesh = -1;              // Scene mesh id
-  bool entering = false;      // by parity: the 1st, 3rd, ... crossing of a closed mesh
-                              // (rays are assumed to start outside every closed mesh
-                              // except the tank)
+  float t_mm = 0.0f;           // distance along the (unit) ray
+  float cos_incidence = 0.0f;  // |cos θ|
+  int mesh = -1;               // Scene mesh id
+  bool entering = false;       // by parity: the 1st, 3rd, ... crossing of a closed mesh
+                               // (rays are assumed to start outside every closed mesh
+                               // except the tank)
 };
 
 class Scene {

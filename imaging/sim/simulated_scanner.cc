@@ -34,7 +34,8 @@ void EnableFlushToZero() {
 #endif
 }
 
-void RequireRange(double v, double lo, double hi, const std::string& field, bool open_low = false) {
+void RequireScannerRange(double v, double lo, double hi, const std::string& field,
+                         bool open_low = false) {
   if (!(std::isfinite(v) && (open_low ? v > lo : v >= lo) && v <= hi)) {
     std::ostringstream os;
     os << "SimulatedScannerOptions: " << field << " must be in " << (open_low ? "(" : "[") << lo
@@ -47,7 +48,8 @@ void RequireRigid(const Eigen::Isometry3d& t, const std::string& field) {
   const Eigen::Matrix3d r = t.linear();
   if (!t.matrix().allFinite() || (r.transpose() * r - Eigen::Matrix3d::Identity()).norm() > 1e-6 ||
       r.determinant() < 0)
-    throw std::invalid_argument("SimulatedScannerOptions: " + field + " must be a finite rotation + translation");
+    throw std::invalid_argument("SimulatedScannerOptions: " + field +
+                                " must be a finite rotation + translation");
 }
 
 std::uint64_t SplitMix(std::uint64_t x) {
@@ -91,41 +93,47 @@ Eigen::Isometry3d DefaultAnnulusToWorld() {
 }
 
 void SimulatedScannerOptions::Validate() const {
-  RequireRange(rate_hz, 0, 200, "rate_hz", true);
-  RequireRange(start_time_s, -1e9, 1e9, "start_time_s");
-  if (max_frames < -1) throw std::invalid_argument("SimulatedScannerOptions: max_frames must be >= -1");
+  RequireScannerRange(rate_hz, 0, 200, "rate_hz", true);
+  RequireScannerRange(start_time_s, -1e9, 1e9, "start_time_s");
+  if (max_frames < -1)
+    throw std::invalid_argument("SimulatedScannerOptions: max_frames must be >= -1");
   probe.Validate("SimulatedScannerOptions: probe");
   RequireRigid(probe_to_world, "probe_to_world");
-  RequireRange(medium_sound_speed_m_s, 1000, 2000, "medium_sound_speed_m_s");
-  RequireRange(assumed_sound_speed_m_s, 1000, 2000, "assumed_sound_speed_m_s");
-  RequireRange(frequency_mhz, 0, 20, "frequency_mhz", true);
-  RequireRange(attenuation_db_cm_mhz, 0, 5, "attenuation_db_cm_mhz");
-  RequireRange(tgc_db_cm_mhz, 0, 5, "tgc_db_cm_mhz");
-  RequireRange(gain_db, -60, 60, "gain_db");
-  RequireRange(dynamic_range_db, 10, 120, "dynamic_range_db");
-  RequireRange(axial_psf_mm, 0, 5, "axial_psf_mm", true);
-  RequireRange(lateral_psf_beams, 0, 4, "lateral_psf_beams", true);
-  RequireRange(elevation_psf_beams, 0, 4, "elevation_psf_beams", true);
-  RequireRange(background_scatter, 0, 1, "background_scatter");
-  RequireRange(noise_floor, 0, 1, "noise_floor");
+  RequireScannerRange(medium_sound_speed_m_s, 1000, 2000, "medium_sound_speed_m_s");
+  RequireScannerRange(assumed_sound_speed_m_s, 1000, 2000, "assumed_sound_speed_m_s");
+  RequireScannerRange(frequency_mhz, 0, 20, "frequency_mhz", true);
+  RequireScannerRange(attenuation_db_cm_mhz, 0, 5, "attenuation_db_cm_mhz");
+  RequireScannerRange(tgc_db_cm_mhz, 0, 5, "tgc_db_cm_mhz");
+  RequireScannerRange(gain_db, -60, 60, "gain_db");
+  RequireScannerRange(dynamic_range_db, 10, 120, "dynamic_range_db");
+  RequireScannerRange(axial_psf_mm, 0, 5, "axial_psf_mm", true);
+  RequireScannerRange(lateral_psf_beams, 0, 4, "lateral_psf_beams", true);
+  RequireScannerRange(elevation_psf_beams, 0, 4, "elevation_psf_beams", true);
+  RequireScannerRange(background_scatter, 0, 1, "background_scatter");
+  RequireScannerRange(noise_floor, 0, 1, "noise_floor");
   const auto& c = catheter_geometry;
-  RequireRange(c.sheath_diameter_mm, 0, 20, "catheter_geometry.sheath_diameter_mm", true);
-  RequireRange(c.sheath_length_mm, 0, 1000, "catheter_geometry.sheath_length_mm", true);
-  if (!(std::isfinite(c.wire_diameter_mm) && c.wire_diameter_mm > 0 && c.wire_diameter_mm < c.sheath_diameter_mm))
+  RequireScannerRange(c.sheath_diameter_mm, 0, 20, "catheter_geometry.sheath_diameter_mm", true);
+  RequireScannerRange(c.sheath_length_mm, 0, 1000, "catheter_geometry.sheath_length_mm", true);
+  if (!(std::isfinite(c.wire_diameter_mm) && c.wire_diameter_mm > 0 &&
+        c.wire_diameter_mm < c.sheath_diameter_mm))
     throw std::invalid_argument(
-        "SimulatedScannerOptions: catheter_geometry.wire_diameter_mm must be in (0, sheath_diameter_mm)");
-  RequireRange(c.wire_protrusion_mm, 0, 200, "catheter_geometry.wire_protrusion_mm");
+        "SimulatedScannerOptions: catheter_geometry.wire_diameter_mm must be in (0, "
+        "sheath_diameter_mm)");
+  RequireScannerRange(c.wire_protrusion_mm, 0, 200, "catheter_geometry.wire_protrusion_mm");
   const auto& a = annulus_geometry;
-  RequireRange(a.diameter_mm, 0, 100, "annulus_geometry.diameter_mm", true);
-  RequireRange(a.thickness_mm, 0, 20, "annulus_geometry.thickness_mm", true);
-  RequireRange(a.saddle_mm, -a.diameter_mm, a.diameter_mm, "annulus_geometry.saddle_mm");
+  RequireScannerRange(a.diameter_mm, 0, 100, "annulus_geometry.diameter_mm", true);
+  RequireScannerRange(a.thickness_mm, 0, 20, "annulus_geometry.thickness_mm", true);
+  RequireScannerRange(a.saddle_mm, -a.diameter_mm, a.diameter_mm, "annulus_geometry.saddle_mm");
   RequireRigid(catheter_pose.base_to_world, "catheter_pose.base_to_world");
-  RequireRange(catheter_pose.advance_mm, -1000, 1000, "catheter_pose.advance_mm");
+  RequireScannerRange(catheter_pose.advance_mm, -1000, 1000, "catheter_pose.advance_mm");
   RequireRigid(annulus_to_world, "annulus_to_world");
-  if (!(tank_min_mm.allFinite() && tank_max_mm.allFinite() && (tank_max_mm - tank_min_mm).minCoeff() > 0))
-    throw std::invalid_argument("SimulatedScannerOptions: tank_max_mm must exceed tank_min_mm on every axis");
+  if (!(tank_min_mm.allFinite() && tank_max_mm.allFinite() &&
+        (tank_max_mm - tank_min_mm).minCoeff() > 0))
+    throw std::invalid_argument(
+        "SimulatedScannerOptions: tank_max_mm must exceed tank_min_mm on every axis");
   for (std::size_t i = 0; i < extra_meshes.size(); ++i)
-    extra_meshes[i].properties.Validate("SimulatedScannerOptions: extra_meshes[" + std::to_string(i) + "].properties");
+    extra_meshes[i].properties.Validate("SimulatedScannerOptions: extra_meshes[" +
+                                        std::to_string(i) + "].properties");
 }
 
 struct SimulatedScanner::Impl {
@@ -139,7 +147,9 @@ struct SimulatedScanner::Impl {
   };
 
   explicit Impl(const SimulatedScannerOptions& o)
-      : probe(o.probe), converter(o.probe), depth_scale(o.assumed_sound_speed_m_s / o.medium_sound_speed_m_s) {
+      : probe(o.probe),
+        converter(o.probe),
+        depth_scale(o.assumed_sound_speed_m_s / o.medium_sound_speed_m_s) {
     const int nb = probe.beam_count();
     const int ns = probe.n_samples;
     const double dr = probe.sample_spacing_mm();
@@ -155,12 +165,14 @@ struct SimulatedScanner::Impl {
 
     // Scene.
     if (o.tank)
-      tank_id = scene.AddMesh(MakeBox(o.tank_min_mm, o.tank_max_mm), AcousticProperties::TankWall());
+      tank_id =
+          scene.AddMesh(MakeBox(o.tank_min_mm, o.tank_max_mm), AcousticProperties::TankWall());
     const auto& cg = o.catheter_geometry;
     sheath_id = scene.AddMesh(MakeCylinder(0.5 * cg.sheath_diameter_mm, cg.sheath_length_mm, 24),
                               AcousticProperties::Sheath());
-    wire_id = scene.AddMesh(MakeCylinder(0.5 * cg.wire_diameter_mm, cg.wire_protrusion_mm + 1.0, 16),
-                            AcousticProperties::Guidewire());
+    wire_id =
+        scene.AddMesh(MakeCylinder(0.5 * cg.wire_diameter_mm, cg.wire_protrusion_mm + 1.0, 16),
+                      AcousticProperties::Guidewire());
     if (!o.catheter) {
       scene.SetEnabled(sheath_id, false);
       scene.SetEnabled(wire_id, false);
@@ -183,7 +195,8 @@ struct SimulatedScanner::Impl {
       const double r_disp_cm = s * dr / 10.0, r_true_cm = r_disp_cm / depth_scale;
       const double db = -2.0 * o.attenuation_db_cm_mhz * o.frequency_mhz * r_true_cm +
                         2.0 * o.tgc_db_cm_mhz * o.frequency_mhz * r_disp_cm + o.gain_db;
-      gain[static_cast<std::size_t>(s)] = static_cast<float>(std::pow(10.0, db / 20.0) / kSpeckleScale);
+      gain[static_cast<std::size_t>(s)] =
+          static_cast<float>(std::pow(10.0, db / 20.0) / kSpeckleScale);
     }
     echo_scale = kSpeckleScale;  // echoes are not speckled: undo the table scale
     noise_level = static_cast<float>(o.noise_floor);
@@ -212,7 +225,8 @@ struct SimulatedScanner::Impl {
     for (int ph = 0; ph < kKernelPhases; ++ph)
       for (int k = -kernel_radius; k <= kernel_radius; ++k) {
         const double x = (k - (ph + 0.5) / kKernelPhases) / sigma_s;
-        kernel[static_cast<std::size_t>(ph * taps + k + kernel_radius)] = static_cast<float>(std::exp(-0.5 * x * x));
+        kernel[static_cast<std::size_t>(ph * taps + k + kernel_radius)] =
+            static_cast<float>(std::exp(-0.5 * x * x));
       }
     lat_az = GaussianTaps(o.lateral_psf_beams, true);
     lat_el = GaussianTaps(o.elevation_psf_beams, true);
@@ -244,25 +258,29 @@ struct SimulatedScanner::Impl {
         im[i] = static_cast<float>(h >> 32) * (2.0f / 4294967296.0f) - 1.0f;
       }
     });
-    auto smooth = [&](std::vector<float>& in, std::vector<float>& out, std::size_t stride, std::size_t len,
-                      double sigma) {
+    auto smooth = [&](std::vector<float>& in, std::vector<float>& out, std::size_t stride,
+                      std::size_t len, double sigma) {
       const std::vector<float> w = GaussianTaps(sigma, false);
       const int r = static_cast<int>(w.size() / 2);
       // Every sample, in blocks of 16 Ki (the 3-argument parallel_for would read a step).
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, std::size_t{1} << 14),
-                        [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t i = range.begin(); i != range.end(); ++i) {
-          const std::size_t pos = (i / stride) % len;
-          float acc = 0;
-          for (int k = -r; k <= r; ++k) {
-            const long long q = static_cast<long long>(pos) + k;
-            const long long wrapped = (q % static_cast<long long>(len) + static_cast<long long>(len)) % static_cast<long long>(len);
-            acc += w[static_cast<std::size_t>(k + r)] *
-                   in[i + static_cast<std::size_t>(wrapped - static_cast<long long>(pos)) * stride];
-          }
-          out[i] = acc;
-        }
-      });
+      tbb::parallel_for(
+          tbb::blocked_range<std::size_t>(0, n, std::size_t{1} << 14),
+          [&](const tbb::blocked_range<std::size_t>& range) {
+            for (std::size_t i = range.begin(); i != range.end(); ++i) {
+              const std::size_t pos = (i / stride) % len;
+              float acc = 0;
+              for (int k = -r; k <= r; ++k) {
+                const long long q = static_cast<long long>(pos) + k;
+                const long long wrapped =
+                    (q % static_cast<long long>(len) + static_cast<long long>(len)) %
+                    static_cast<long long>(len);
+                acc += w[static_cast<std::size_t>(k + r)] *
+                       in[i +
+                          static_cast<std::size_t>(wrapped - static_cast<long long>(pos)) * stride];
+              }
+              out[i] = acc;
+            }
+          });
       in.swap(out);
     };
     for (auto* f : {&re, &im}) {
@@ -313,7 +331,8 @@ struct SimulatedScanner::Impl {
 
   void TraceBeam(int b) {
     RayHit hits[kMaxHits];
-    const int n = scene.TraceAll(origin_world, beam_dirs[static_cast<std::size_t>(b)], true_range_mm, hits, kMaxHits);
+    const int n = scene.TraceAll(origin_world, beam_dirs[static_cast<std::size_t>(b)],
+                                 true_range_mm, hits, kMaxHits);
     Echo* ec = &echoes[static_cast<std::size_t>(b) * kMaxEchoes];
     Segment* sg = &segments[static_cast<std::size_t>(b) * kMaxSegments];
     int ne = 0, nsg = 0;
@@ -323,7 +342,9 @@ struct SimulatedScanner::Impl {
       const RayHit& h = hits[i];
       const AcousticProperties& p = props[static_cast<std::size_t>(h.mesh)];
       const float s = h.t_mm * samples_per_true_mm;
-      const float amp = t_amp * static_cast<float>(p.specular * std::pow(h.cos_incidence, p.specularity) + p.diffuse);
+      const float amp =
+          t_amp *
+          static_cast<float>(p.specular * std::pow(h.cos_incidence, p.specularity) + p.diffuse);
       if (ne < kMaxEchoes) ec[ne++] = {s, amp};
       if (p.is_metal && h.entering) {
         for (int j = i + 1; j < n; ++j) {
@@ -367,7 +388,8 @@ struct SimulatedScanner::Impl {
         const std::size_t nb = static_cast<std::size_t>(je * na + ja);
         const int cnt = echo_count[nb];
         if (cnt == 0) continue;
-        const float w = lat_az[static_cast<std::size_t>(da + ra)] * lat_el[static_cast<std::size_t>(de + re)] * echo_scale;
+        const float w = lat_az[static_cast<std::size_t>(da + ra)] *
+                        lat_el[static_cast<std::size_t>(de + re)] * echo_scale;
         const Echo* ec = &echoes[nb * kMaxEchoes];
         for (int k = 0; k < cnt; ++k) {
           const float x = ec[k].sample;
@@ -387,7 +409,8 @@ struct SimulatedScanner::Impl {
     const std::size_t stride = static_cast<std::size_t>(na);
     const float nl = noise_level;
     for (int s = 0; s < ns; ++s) {
-      const float v = line[s] * gain[static_cast<std::size_t>(s)] + nl * (1.0f / kSpeckleScale) * noise[s];
+      const float v =
+          line[s] * gain[static_cast<std::size_t>(s)] + nl * (1.0f / kSpeckleScale) * noise[s];
       std::uint32_t bits;
       std::memcpy(&bits, &v, sizeof bits);
       out[static_cast<std::size_t>(s) * stride] = log_lut[bits >> 16];
@@ -406,7 +429,7 @@ SimulatedScanner::~SimulatedScanner() = default;
 
 void SimulatedScanner::SetCatheterPose(const CatheterPose& pose) {
   RequireRigid(pose.base_to_world, "catheter_pose.base_to_world");
-  RequireRange(pose.advance_mm, -1000, 1000, "catheter_pose.advance_mm");
+  RequireScannerRange(pose.advance_mm, -1000, 1000, "catheter_pose.advance_mm");
   impl_->pose = pose;
 }
 
@@ -428,7 +451,8 @@ SourceFrame SimulatedScanner::Render(double t_s) {
   Impl& m = *impl_;
   if (options_.catheter_pose_at) SetCatheterPose(options_.catheter_pose_at(t_s));
   const double disp = options_.target_displacement_mm ? options_.target_displacement_mm(t_s) : 0.0;
-  if (!std::isfinite(disp)) throw std::invalid_argument("SimulatedScanner: target_displacement_mm is not finite");
+  if (!std::isfinite(disp))
+    throw std::invalid_argument("SimulatedScanner: target_displacement_mm is not finite");
   const auto& cg = options_.catheter_geometry;
   const Eigen::Isometry3d& base = m.pose.base_to_world;
   const double adv = m.pose.advance_mm;
@@ -440,8 +464,10 @@ SourceFrame SimulatedScanner::Render(double t_s) {
   // Speckle offsets for this frame: whole elevation rows plus a sample shift.
   const std::size_t ns = static_cast<std::size_t>(m.probe.n_samples);
   const std::size_t row = static_cast<std::size_t>(m.probe.n_azimuth) * ns;
-  const std::size_t off = (m.rng() % static_cast<std::uint64_t>(m.probe.n_elevation)) * row + m.rng() % ns;
-  const std::size_t noise_off = (m.rng() % static_cast<std::uint64_t>(m.probe.n_elevation)) * row + m.rng() % ns;
+  const std::size_t off =
+      (m.rng() % static_cast<std::uint64_t>(m.probe.n_elevation)) * row + m.rng() % ns;
+  const std::size_t noise_off =
+      (m.rng() % static_cast<std::uint64_t>(m.probe.n_elevation)) * row + m.rng() % ns;
 
   const int nb = m.probe.beam_count();
   tbb::parallel_for(tbb::blocked_range<int>(0, nb, 64), [&](const tbb::blocked_range<int>& r) {
@@ -450,16 +476,18 @@ SourceFrame SimulatedScanner::Render(double t_s) {
   });
   // By elevation rows: a row's polar bytes (n_samples × n_azimuth) stay in cache while its
   // beams are written with stride n_azimuth.
-  tbb::parallel_for(tbb::blocked_range<int>(0, m.probe.n_elevation, 1), [&](const tbb::blocked_range<int>& r) {
-    EnableFlushToZero();
-    std::vector<float> line(ns);
-    for (int ie = r.begin(); ie != r.end(); ++ie) {
-      for (int ia = 0; ia < m.probe.n_azimuth; ++ia) {
-        const std::size_t base_idx = static_cast<std::size_t>(ie * m.probe.n_azimuth + ia) * ns;
-        m.FormBeam(ia, ie, &m.speckle[off + base_idx], &m.speckle[noise_off + base_idx], line.data());
-      }
-    }
-  });
+  tbb::parallel_for(
+      tbb::blocked_range<int>(0, m.probe.n_elevation, 1), [&](const tbb::blocked_range<int>& r) {
+        EnableFlushToZero();
+        std::vector<float> line(ns);
+        for (int ie = r.begin(); ie != r.end(); ++ie) {
+          for (int ia = 0; ia < m.probe.n_azimuth; ++ia) {
+            const std::size_t base_idx = static_cast<std::size_t>(ie * m.probe.n_azimuth + ia) * ns;
+            m.FormBeam(ia, ie, &m.speckle[off + base_idx], &m.speckle[noise_off + base_idx],
+                       line.data());
+          }
+        }
+      });
 
   Volume vol = Volume::Create(m.converter.geometry());
   m.converter.Convert(m.polar, vol);
@@ -469,7 +497,8 @@ SourceFrame SimulatedScanner::Render(double t_s) {
   FrameGroundTruth truth;
   const Eigen::Vector3d dir_world = base.linear().col(2);
   const Eigen::Vector3d sheath_end = base * Eigen::Vector3d(0, 0, adv + cg.sheath_length_mm);
-  const Eigen::Vector3d tip = base * Eigen::Vector3d(0, 0, adv + cg.sheath_length_mm + cg.wire_protrusion_mm);
+  const Eigen::Vector3d tip =
+      base * Eigen::Vector3d(0, 0, adv + cg.sheath_length_mm + cg.wire_protrusion_mm);
   truth.axis_point_mm = WorldToImage(sheath_end);
   truth.axis_direction = (m.world_to_probe.linear() * dir_world).normalized();
   truth.tip_mm = WorldToImage(tip);

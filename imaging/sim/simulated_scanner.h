@@ -1,18 +1,13 @@
 // SimulatedScanner: a VolumeSource that renders 3D ultrasound volumes of a water-tank scene
-// — catheter sheath with a protruding metal guidewire, a saddle-shaped valve annulus moving
-// along the catheter axis, tank walls — by ray tracing a matrix-array probe's beams
-// (Embree) and modelling the echoes along each beam: specular + diffuse reflection,
-// attenuation, shadowing, metal reverberation, Rayleigh speckle, TGC, log compression,
-// then scan conversion (docs/simulated_scanner.md).
+// (catheter sheath with a protruding metal guidewire, a moving saddle-shaped valve annulus,
+// tank walls) by ray tracing a matrix-array probe's beams (Embree) and modelling the echoes.
 //
-// Units: mm, s, rad, m/s, dB. Frames: the world frame is the tank's; ProbeToWorld poses
-// the probe (frame in imaging/sim/probe.h). The catheter frame CatheterBaseToWorld has its
-// origin at the sheath's proximal end in the scene and +z along the catheter axis towards
-// the tip; the catheter advances along +z by `advance_mm` (the plant's tip position,
-// hw::SimulatedCatheter::truth().tip_mm). The annulus frame AnnulusToWorld has +z along the
-// annulus normal; the target motion displaces the annulus along it. Volumes and their
-// ground truth are in the image frame = displayed probe frame: true probe-frame points
-// scaled by assumed_sound_speed / medium_sound_speed (1540/1482 ≈ 1.039 in 20 °C water).
+// Units: mm, s, rad, m/s, dB. Frames: world = the tank's; ProbeToWorld; CatheterBaseToWorld
+// (+z along the axis to the tip; advances by advance_mm, the plant's tip_mm); AnnulusToWorld
+// (+z its normal, along which the target motion displaces it). Volumes and ground truth are
+// in the image frame = displayed probe frame (true distances × assumed / medium sound speed).
+// Errors: options are validated (std::invalid_argument naming the field).
+// Details: docs/simulated_scanner.md#frames-mm-s-rad
 #pragma once
 
 #include <Eigen/Geometry>
@@ -29,16 +24,16 @@
 namespace echoservo::imaging::sim {
 
 struct CatheterGeometry {
-  double sheath_diameter_mm = 2.5;    // outer diameter, (0, 20]
-  double sheath_length_mm = 40.0;     // modelled length from the base, (0, 1000]
-  double wire_diameter_mm = 0.9;      // (0, sheath_diameter)
-  double wire_protrusion_mm = 8.0;    // beyond the sheath end, [0, 200]
+  double sheath_diameter_mm = 2.5;  // outer diameter, (0, 20]
+  double sheath_length_mm = 40.0;   // modelled length from the base, (0, 1000]
+  double wire_diameter_mm = 0.9;    // (0, sheath_diameter)
+  double wire_protrusion_mm = 8.0;  // beyond the sheath end, [0, 200]
 };
 
 struct AnnulusGeometry {
-  double diameter_mm = 28.0;   // (0, 100]
-  double thickness_mm = 3.0;   // (0, 20]
-  double saddle_mm = 2.0;      // saddle height, |·| < diameter
+  double diameter_mm = 28.0;  // (0, 100]
+  double thickness_mm = 3.0;  // (0, 20]
+  double saddle_mm = 2.0;     // saddle height, |·| < diameter
 };
 
 // Default poses: probe at the world origin looking down +z; catheter entering the field of
@@ -53,9 +48,9 @@ struct CatheterPose {
 };
 
 struct SimulatedScannerOptions {
-  double rate_hz = 25.0;            // volumes per second, (0, 200]
-  double start_time_s = 0.0;        // timestamp of frame 0, finite
-  std::int64_t max_frames = -1;     // end of stream after this many; −1: endless
+  double rate_hz = 25.0;         // volumes per second, (0, 200]
+  double start_time_s = 0.0;     // timestamp of frame 0, finite
+  std::int64_t max_frames = -1;  // end of stream after this many; −1: endless
   ProbeGeometry probe;
   Eigen::Isometry3d probe_to_world = Eigen::Isometry3d::Identity();
 
@@ -73,7 +68,7 @@ struct SimulatedScannerOptions {
   double noise_floor = 0.002;               // electronic noise after TGC, [0, 1]
   std::uint64_t seed = 1;
 
-  bool catheter = true;   // false: catheter-free scene (false-detection tests)
+  bool catheter = true;  // false: catheter-free scene (false-detection tests)
   bool annulus = true;
   bool tank = true;
   bool reverberation = true;
@@ -112,7 +107,9 @@ class SimulatedScanner final : public VolumeSource {
   const SimulatedScannerOptions& options() const { return options_; }
   const ProbeGeometry& probe() const { return options_.probe; }
   // Displayed/true range ratio: assumed / medium speed of sound.
-  double depth_scale() const { return options_.assumed_sound_speed_m_s / options_.medium_sound_speed_m_s; }
+  double depth_scale() const {
+    return options_.assumed_sound_speed_m_s / options_.medium_sound_speed_m_s;
+  }
   // World point (true, mm) → image frame (displayed probe frame, mm).
   Eigen::Vector3d WorldToImage(const Eigen::Vector3d& world_mm) const;
   // The polar image of the last frame (uint8, azimuth fastest; see ProbeGeometry::PolarIndex).

@@ -16,7 +16,8 @@ using echoservo::testing::RunCli;
 using echoservo::testing::ShellQuote;
 
 const std::string kSpine =
-    (std::filesystem::path(ECHOSERVO_DATA_DIR) / "plus" / "SpinePhantomFreehandReconstructed.mha").string();
+    (std::filesystem::path(ECHOSERVO_DATA_DIR) / "plus" / "SpinePhantomFreehandReconstructed.mha")
+        .string();
 
 void ExpectQuantiles(const nlohmann::json& q, const std::string& what) {
   ASSERT_TRUE(q.is_object()) << what;
@@ -44,15 +45,18 @@ TEST(BenchDetectCli, JsonHasThroughputAndAccuracyPerClassAndMethod) {
     std::set<std::string> methods;
     for (const auto& m : c["methods"]) {
       methods.insert(m["method"].get<std::string>());
-      for (const char* k : {"volumes", "detected", "detection_rate", "false_detections", "errors", "mean_ms"})
+      for (const char* k :
+           {"volumes", "detected", "detection_rate", "false_detections", "errors", "mean_ms"})
         EXPECT_TRUE(m[k].is_number()) << c["name"] << " " << m["method"] << " " << k;
-      for (const char* k : {"angle_deg", "offset_mm", "tip_mm", "target_mm"}) ExpectQuantiles(m[k], k);
+      for (const char* k : {"angle_deg", "offset_mm", "tip_mm", "target_mm"})
+        ExpectQuantiles(m[k], k);
     }
     EXPECT_TRUE(methods.count("fast") && methods.count("ransac")) << c["name"];
     EXPECT_EQ(methods.count("tracking"), c["catheter"].get<bool>() ? 1u : 0u) << c["name"];
   }
-  for (const char* n : {"water_tank", "no_reverberation", "speckle_clutter", "shadowing", "wide_poses", "sound_speed",
-                        "free_annulus", "free_tank", "free_clutter", "spine_phantom"})
+  for (const char* n :
+       {"water_tank", "no_reverberation", "speckle_clutter", "shadowing", "wide_poses",
+        "sound_speed", "free_annulus", "free_tank", "free_clutter", "spine_phantom"})
     EXPECT_TRUE(names.count(n)) << n;
   EXPECT_TRUE(j["agreement"].is_null());
   EXPECT_TRUE(j["skipped"].is_array());

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "hw/effect_registry.h"
-#include "hw/trial.h"
+#include "hw/io/trial_io.h"
 #include "tests/test_util/cli_runner.h"
 #include "tests/test_util/temp_dir.h"
 

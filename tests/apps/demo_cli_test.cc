@@ -30,9 +30,9 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
   const auto r = RunCli("demo --duration 8 --harmonics 3 --json --out " + ShellQuote(run.string()));
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  for (const char* key : {"tip_to_target_rms_mm", "true_tip_to_target_rms_mm", "latency_ms", "dropped_frames", "volumes",
-                          "missed_acquisitions", "detected", "em_samples", "servo_cycles", "limit_faults",
-                          "limit_violations"})
+  for (const char* key : {"tip_to_target_rms_mm", "true_tip_to_target_rms_mm", "latency_ms",
+                          "dropped_frames", "volumes", "missed_acquisitions", "detected",
+                          "em_samples", "servo_cycles", "limit_faults", "limit_violations"})
     ASSERT_TRUE(j.contains(key)) << key << " in " << r.out;
   EXPECT_EQ(j["ekf_harmonics"].get<int>(), 3);
   // 25 vol/s for 8 s: 201 slots (k/25 ≤ 8); a loaded machine may miss some, never add any.
@@ -42,12 +42,14 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
   EXPECT_GT(j["detected"].get<int>(), 0);
   ASSERT_TRUE(j["tip_to_target_rms_mm"].is_number()) << r.out;  // NaN prints as null
   EXPECT_TRUE(std::isfinite(j["tip_to_target_rms_mm"].get<double>()));
-  ASSERT_TRUE(j.contains("report_tip_to_target_rms_mm")) << j.value("report_error", std::string("no report_error"));
+  ASSERT_TRUE(j.contains("report_tip_to_target_rms_mm"))
+      << j.value("report_error", std::string("no report_error"));
   EXPECT_TRUE(std::isfinite(j["report_tip_to_target_rms_mm"].get<double>()));
   EXPECT_EQ(j["limit_violations"].get<int>(), 0);
   // 40 Hz EM tracker over 8 s.
   EXPECT_NEAR(j["em_samples"].get<int>(), 321, 1);
-  for (const char* f : {"run.json", "targets.csv", "servo.csv", "latency.csv", "em.csv", "truth.csv", "report.html"})
+  for (const char* f : {"run.json", "targets.csv", "servo.csv", "latency.csv", "em.csv",
+                        "truth.csv", "report.html"})
     EXPECT_TRUE(fs::exists(run / f)) << f;
   EXPECT_EQ(ReadFile(run / "em.csv").substr(0, 25), "t_s,x_mm,y_mm,z_mm,status");
   // The report aligns the EM log (with the run's EM calibration) and measures the run.

@@ -3,9 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
-#include <nlohmann/json.hpp>
 #include <cmath>
 #include <cstdio>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <regex>
 #include <string>
@@ -28,7 +28,9 @@ Eigen::Vector3d Field(const std::string& header, int frame, const std::string& n
   return {std::stod(m[1]), std::stod(m[2]), std::stod(m[3])};
 }
 
-Eigen::Vector3d Vec(const nlohmann::json& j) { return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()}; }
+Eigen::Vector3d Vec(const nlohmann::json& j) {
+  return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()};
+}
 
 class DetectCli : public ::testing::Test {
  protected:
@@ -60,7 +62,8 @@ TEST_F(DetectCli, FindsTheRecordedCatheterWithinHalfAMillimetre) {
       EXPECT_LT((Vec(fr["target"]) - Field(header, f, "Target")).norm(), 0.5) << mode << f;
       const Eigen::Vector3d d = Vec(fr["axis_direction"]);
       EXPECT_NEAR(d.norm(), 1.0, 1e-9);
-      EXPECT_GT(d.dot(Field(header, f, "CatheterAxisDirection")), std::cos(0.5 * std::numbers::pi / 180));
+      EXPECT_GT(d.dot(Field(header, f, "CatheterAxisDirection")),
+                std::cos(0.5 * std::numbers::pi / 180));
       EXPECT_EQ(fr["tracked"].get<bool>(), std::string(mode).empty() ? false : f > 0);
     }
   }

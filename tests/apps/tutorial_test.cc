@@ -35,7 +35,8 @@ std::vector<std::string> TutorialCommands() {
 TEST(Tutorial, RunsEndToEndAndTellsTheTruth) {
   const std::vector<std::string> commands = TutorialCommands();
   ASSERT_EQ(commands.size(), 6u) << "the tutorial's steps changed: update this test";
-  const fs::path dir = fs::temp_directory_path() / ("echoservo_tutorial_" + std::to_string(::getpid()));
+  const fs::path dir =
+      fs::temp_directory_path() / ("echoservo_tutorial_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
   std::vector<nlohmann::json> out;
@@ -46,7 +47,8 @@ TEST(Tutorial, RunsEndToEndAndTellsTheTruth) {
     out.push_back(measures ? nlohmann::json::parse(r.out) : nlohmann::json{{"text", r.out}});
   }
   // 1: 16 trials.
-  EXPECT_EQ(std::distance(fs::directory_iterator(dir / "tutorial_data"), fs::directory_iterator{}), 32);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir / "tutorial_data"), fs::directory_iterator{}),
+            32);
   // 2: tip at the noise level, force many times the force noise.
   const auto& seed = out[1];
   EXPECT_LT(seed["rms_mm"].get<double>(), 1.2 * seed["noise"]["tip_mm"].get<double>());
@@ -55,8 +57,10 @@ TEST(Tutorial, RunsEndToEndAndTellsTheTruth) {
   const auto& diag = out[2];
   EXPECT_FALSE(diag["adequate"].get<bool>());
   EXPECT_EQ(diag["candidates"][0]["effect"], "capstan_friction");
-  EXPECT_NE(diag["candidates"][0]["evidence"].get<std::string>().find("bend angle"), std::string::npos);
-  for (std::size_t i = 1; i < diag["candidates"].size(); ++i) EXPECT_FALSE(diag["candidates"][i]["significant"].get<bool>());
+  EXPECT_NE(diag["candidates"][0]["evidence"].get<std::string>().find("bend angle"),
+            std::string::npos);
+  for (std::size_t i = 1; i < diag["candidates"].size(); ++i)
+    EXPECT_FALSE(diag["candidates"][i]["significant"].get<bool>());
   // 4: force error falls by more than half; mu has a standard deviation.
   const auto& fixed = out[3];
   EXPECT_LT(fixed["force_rms_n"].get<double>(), 0.5 * seed["force_rms_n"].get<double>());

@@ -14,12 +14,13 @@
 #include <vector>
 
 #include "control/trajectory.h"
+#include "tests/test_util/constants.h"
 
 namespace echoservo::control {
 namespace {
 
-constexpr double kDt = 1e-3;
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using testing::kDt;
+using testing::kNaN;
 
 CompensatorInput At(const Trajectory& reference, std::size_t k, double tip = 0.0) {
   return {.t_s = static_cast<double>(k) * kDt,

@@ -20,11 +20,13 @@
 #include <string>
 #include <vector>
 
+#include "tests/test_util/constants.h"
+
 namespace echoservo::control {
 namespace {
 
-constexpr double kDt = 1e-3;
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using testing::kDt;
+using testing::kNaN;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Drives a limiter and checks every setpoint against the limits.

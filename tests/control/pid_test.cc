@@ -13,10 +13,12 @@
 #include <stdexcept>
 #include <string>
 
+#include "tests/test_util/constants.h"
+
 namespace echoservo::control {
 namespace {
 
-constexpr double kDt = 1e-3;
+using testing::kDt;
 
 PidGains Gains(double kp, double ki, double kd, double limit = 26.7) {
   PidGains g;

@@ -15,15 +15,16 @@
 #include <thread>
 #include <vector>
 
-#include "control/track_experiment.h"
+#include "control/experiments/track_experiment.h"
 #include "control/trajectory.h"
 #include "hw/seed_plant.h"
 #include "hw/simulated_catheter.h"
+#include "tests/test_util/constants.h"
 
 namespace echoservo::control {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using testing::kNaN;
 
 // A plant placed on the reference's start and activated, and a loop on it.
 struct Rig {

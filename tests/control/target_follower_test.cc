@@ -14,7 +14,8 @@ namespace echoservo::control {
 namespace {
 
 // Target along the axis: 40 mm + 5 mm·cos(2π·1.2·t); valid for 0.5 s after acquisition.
-TargetEstimateInput Estimate(double acquired_s, double tip_axis_mm, double published_delay_s = 0.06) {
+TargetEstimateInput Estimate(double acquired_s, double tip_axis_mm,
+                             double published_delay_s = 0.06) {
   TargetEstimateInput e;
   e.acquired_s = acquired_s;
   e.published_s = acquired_s + published_delay_s;
@@ -45,7 +46,8 @@ TEST(TargetFollower, FollowsThePredictedTargetAtTheStandoffInCatheterCoordinates
   for (double t : {0.12, 0.2, 0.3}) {
     const MotionSample m = f.Evaluate(t);
     EXPECT_NEAR(m.position_mm, Target(t) - 3.0 - 30.0, 1e-9) << t;
-    EXPECT_NEAR(m.velocity_mm_s, -5.0 * 2 * std::numbers::pi * 1.2 * std::sin(2 * std::numbers::pi * 1.2 * t), 1e-6);
+    EXPECT_NEAR(m.velocity_mm_s,
+                -5.0 * 2 * std::numbers::pi * 1.2 * std::sin(2 * std::numbers::pi * 1.2 * t), 1e-6);
   }
   f.SetStandoff(5.0);
   EXPECT_NEAR(f.Evaluate(0.2).position_mm, Target(0.2) - 5.0 - 30.0, 1e-9);
@@ -99,7 +101,8 @@ TEST(TargetFollower, EstimatesTheImageToCatheterScale) {
   EXPECT_EQ(plain.scale(), 1.0);
   // The prior's pull: λ = σ²/(n_eff·σ_k²) with n_eff = (2 − g)/g, var(x) = amp²/2.
   const double g = cfg.scale_gain;
-  const double lambda = cfg.tip_noise_mm * cfg.tip_noise_mm / ((2 - g) / g * cfg.scale_prior_sd * cfg.scale_prior_sd);
+  const double lambda =
+      cfg.tip_noise_mm * cfg.tip_noise_mm / ((2 - g) / g * cfg.scale_prior_sd * cfg.scale_prior_sd);
   const double expected = k - (k - 1) * lambda / (amp * amp / 2 + lambda);
   EXPECT_NEAR(follower.scale(), expected, 0.002);
   // The reference makes the image see the tip at s_target − standoff: k·x_ref + c0.
@@ -181,18 +184,18 @@ TEST(TargetFollower, BadEstimatesAreRejectedAndCounted) {
   mismatched.target_motion.sin_mm.push_back(1.0);
   EXPECT_FALSE(f.Accept(mismatched, 1.0));
   EXPECT_EQ(f.counters().rejected_range, 2u);
-  EXPECT_FALSE(f.Accept(Estimate(1.5, 30.0), 1.0));         // from the future
+  EXPECT_FALSE(f.Accept(Estimate(1.5, 30.0), 1.0));  // from the future
   auto reversed = Estimate(0.9, 30.0);
-  reversed.published_s = 0.8;                                // published before acquired
+  reversed.published_s = 0.8;  // published before acquired
   EXPECT_FALSE(f.Accept(reversed, 1.0));
-  EXPECT_FALSE(f.Accept(Estimate(-5.0, 30.0), 1.0));        // far too old
+  EXPECT_FALSE(f.Accept(Estimate(-5.0, 30.0), 1.0));  // far too old
   EXPECT_EQ(f.counters().rejected_time, 3u);
   auto unsure = Estimate(0.9, 30.0);
   unsure.confidence = 0.1;
   EXPECT_FALSE(f.Accept(unsure, 1.0));
   EXPECT_EQ(f.counters().rejected_confidence, 1u);
   EXPECT_TRUE(f.Accept(Estimate(0.9, 30.0), 1.0));
-  EXPECT_FALSE(f.Accept(Estimate(0.9, 30.0), 1.0));          // not newer than the last
+  EXPECT_FALSE(f.Accept(Estimate(0.9, 30.0), 1.0));  // not newer than the last
   EXPECT_EQ(f.counters().accepted, 1u);
   EXPECT_EQ(f.mode(), FollowerMode::kFollowing);
 }

@@ -227,7 +227,9 @@ TEST(HeartbeatEkf, WaitsForEnoughSamplesWhenFramesAreSparse) {
   HeartbeatEkf ekf;
   double t = 0.0;
   for (int i = 0; i < 12; ++i, t += 0.7) {
-    EXPECT_EQ(ekf.Process(t, 40.0 + 5.0 * std::cos(2 * std::numbers::pi * 1.1 * t)), UpdateResult::kBuffering) << t;
+    EXPECT_EQ(ekf.Process(t, 40.0 + 5.0 * std::cos(2 * std::numbers::pi * 1.1 * t)),
+              UpdateResult::kBuffering)
+        << t;
     EXPECT_DOUBLE_EQ(ekf.Predict(t + 0.1), 40.0 + 5.0 * std::cos(2 * std::numbers::pi * 1.1 * t));
   }
   EXPECT_FALSE(ekf.initialised());

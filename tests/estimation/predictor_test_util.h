@@ -1,10 +1,11 @@
-// Shared fixtures of the predictor tests: synthetic mitral traces (control/synthetic_motion.h)
-// and the real phantom trace (data/heart_motion/phantom_20hz.csv).
+// Shared fixtures of the predictor tests: synthetic mitral traces
+// (control/experiments/synthetic_motion.h) and the real phantom trace
+// (data/heart_motion/phantom_20hz.csv).
 #pragma once
 
 #include <string>
 
-#include "control/synthetic_motion.h"
+#include "control/experiments/synthetic_motion.h"
 #include "estimation/motion_trace.h"
 
 namespace echoservo::testing {

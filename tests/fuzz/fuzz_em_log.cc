@@ -1,4 +1,4 @@
-// Fuzz target: the EM-tracker log importer (imaging/io/em_log_import.h, hw/em_log.h): NDI
+// Fuzz target: the EM-tracker log importer (imaging/io/em_log_import.h, hw/io/em_log.h): NDI
 // Aurora CSV exports, the simulated tracker's em.csv and PLUS tracked sequences, as
 // `echoservo report --em LOG` reads them.
 //
@@ -23,12 +23,21 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   hw::EmImportOptions options;
   const char* ext = ".csv";
   switch (data[0] & 3) {
-    case 0: options.format = hw::EmLogFormat::kAuto; break;
-    case 1: options.format = hw::EmLogFormat::kAurora; break;
-    case 2: options.format = hw::EmLogFormat::kSim; break;
-    default: ext = ".igs.mha"; break;
+    case 0:
+      options.format = hw::EmLogFormat::kAuto;
+      break;
+    case 1:
+      options.format = hw::EmLogFormat::kAurora;
+      break;
+    case 2:
+      options.format = hw::EmLogFormat::kSim;
+      break;
+    default:
+      ext = ".igs.mha";
+      break;
   }
-  if (data[0] & 4) options.units = (data[0] & 8) ? hw::LengthUnit::kInch : hw::LengthUnit::kMillimetre;
+  if (data[0] & 4)
+    options.units = (data[0] & 8) ? hw::LengthUnit::kInch : hw::LengthUnit::kMillimetre;
   static const char* const kSensors[] = {"", "1", "b", "StylusToTracker"};
   options.sensor = kSensors[data[1] & 3];
   const auto& path = echoservo::fuzz::Scratch().Write(ext, {data + 2, size - 2});

@@ -1,4 +1,4 @@
-// Fuzz target: the trial reader (hw/trial.h, hw/csv_table.h): a trial CSV and its sibling
+// Fuzz target: the trial reader (hw/io/trial_io.h, hw/io/csv_table.h): a trial CSV and its sibling
 // JSON, as `echoservo lab` reads a dataset, and a catheter configuration file
 // (ReadCatheterConfig, `sim track --catheter FILE.json`).
 //
@@ -15,7 +15,7 @@
 #include <string_view>
 #include <vector>
 
-#include "hw/trial.h"
+#include "hw/io/trial_io.h"
 #include "tests/fuzz/fuzz_util.h"
 
 namespace hw = echoservo::hw;

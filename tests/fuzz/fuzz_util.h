@@ -40,7 +40,8 @@ class ScratchFiles {
       it = paths_.emplace(ext, dir / ("echoservo_fuzz_" + std::to_string(::getpid()) + ext)).first;
     }
     std::ofstream out(it->second, std::ios::binary | std::ios::trunc);
-    out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    out.write(reinterpret_cast<const char*>(bytes.data()),
+              static_cast<std::streamsize>(bytes.size()));
     out.close();
     if (!out) throw std::runtime_error("fuzz: cannot write " + it->second.string());
     return it->second;

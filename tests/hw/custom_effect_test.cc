@@ -31,6 +31,7 @@
 #include "hw/effects/builtin_effects.h"
 #include "hw/simulated_catheter.h"
 #include "hw/transmission_model.h"
+#include "tests/test_util/constants.h"
 #include "tests/test_util/expect_error.h"
 
 namespace echoservo::hw {
@@ -304,7 +305,7 @@ TEST(CustomEffect, AddsMuTimesPreloadToThePipelineFriction) {
 
 // ------------------------------------------------------------------ closed loop
 
-constexpr double kDt = 1e-3;
+using testing::kDt;
 const SensorParams kSensors{};
 
 struct Stroke {

@@ -28,7 +28,7 @@ const Names kCatalog = {"coulomb_friction",  "viscous_friction",     "stribeck_f
                         "friction_backlash", "deadzone_traversal",   "sensor_delay",
                         "tip_sensor_scale"};
 
-const EffectRegistry& Registry() {
+const EffectRegistry& BuiltinCatalog() {
   static const EffectRegistry registry = EffectRegistry::WithBuiltinEffects();
   return registry;
 }
@@ -48,10 +48,10 @@ double Deg(double deg) { return deg * std::numbers::pi / 180.0; }
 // ---------------------------------------------------------------- registry and SPEC
 
 TEST(EffectRegistry, BuiltinCatalogInPipelineOrder) {
-  EXPECT_EQ(Registry().Names(), kCatalog);
+  EXPECT_EQ(BuiltinCatalog().Names(), kCatalog);
   for (const std::string& name : kCatalog) {
-    ASSERT_TRUE(Registry().Contains(name)) << name;
-    const auto effect = Registry().Create(name);
+    ASSERT_TRUE(BuiltinCatalog().Contains(name)) << name;
+    const auto effect = BuiltinCatalog().Create(name);
     ASSERT_NE(effect, nullptr);
     EXPECT_EQ(effect->name(), name);
     EXPECT_FALSE(effect->description().empty()) << name;
@@ -64,7 +64,7 @@ TEST(EffectRegistry, BuiltinCatalogInPipelineOrder) {
       EXPECT_LE(p.default_value, p.upper) << name << "." << p.name;
     }
   }
-  EXPECT_FALSE(Registry().Contains("seed"));  // an alias of the SPEC grammar, not an effect
+  EXPECT_FALSE(BuiltinCatalog().Contains("seed"));  // an alias of the SPEC grammar, not an effect
 }
 
 TEST(EffectRegistry, StagesMatchThePipeline) {
@@ -80,13 +80,14 @@ TEST(EffectRegistry, StagesMatchThePipeline) {
       {"sensor_delay", EffectStage::kSensor},
       {"tip_sensor_scale", EffectStage::kSensor}};
   for (const auto& [name, stage] : expected) {
-    EXPECT_EQ(Registry().Create(name)->stage(), stage) << name;
+    EXPECT_EQ(BuiltinCatalog().Create(name)->stage(), stage) << name;
   }
   EXPECT_EQ(ToString(EffectStage::kTipDynamics), "tip dynamics");
 }
 
 TEST(EffectRegistry, UnknownEffectNamesTheTokenAndTheKnownOnes) {
-  const std::string msg = InvalidArgumentMessage([] { Registry().Create("magnetic_friction"); });
+  const std::string msg =
+      InvalidArgumentMessage([] { BuiltinCatalog().Create("magnetic_friction"); });
   ExpectContains(msg, "magnetic_friction");
   ExpectContains(msg, "coulomb_friction");
   ExpectContains(msg, "seed");
@@ -105,12 +106,12 @@ TEST(EffectRegistry, RegisterRejectsBadEntries) {
 
 TEST(ModelSpec, SeedPlusCapstanExpandsInPipelineOrder) {
   const Names expected = {"coulomb_friction", "viscous_friction", "capstan_friction", "backlash"};
-  EXPECT_EQ(ParseModelSpec("seed+capstan_friction", Registry()), expected);
-  EXPECT_EQ(ParseModelSpec("capstan_friction+seed", Registry()), expected);
-  EXPECT_EQ(
-      ParseModelSpec("backlash+capstan_friction+viscous_friction+coulomb_friction", Registry()),
-      expected);
-  EXPECT_EQ(ParseModelSpec("seed", Registry()), SeedEffects());
+  EXPECT_EQ(ParseModelSpec("seed+capstan_friction", BuiltinCatalog()), expected);
+  EXPECT_EQ(ParseModelSpec("capstan_friction+seed", BuiltinCatalog()), expected);
+  EXPECT_EQ(ParseModelSpec("backlash+capstan_friction+viscous_friction+coulomb_friction",
+                           BuiltinCatalog()),
+            expected);
+  EXPECT_EQ(ParseModelSpec("seed", BuiltinCatalog()), SeedEffects());
   EXPECT_EQ(SeedEffects(), (Names{"coulomb_friction", "viscous_friction", "backlash"}));
 }
 
@@ -119,21 +120,21 @@ TEST(ModelSpec, FullCatalogInAnyOrderGivesPipelineOrder) {
   for (auto it = kCatalog.rbegin(); it != kCatalog.rend(); ++it) {
     reversed += (reversed.empty() ? "" : "+") + *it;
   }
-  EXPECT_EQ(ParseModelSpec(reversed, Registry()), kCatalog);
+  EXPECT_EQ(ParseModelSpec(reversed, BuiltinCatalog()), kCatalog);
 }
 
 TEST(ModelSpec, UnknownTokenIsNamed) {
   for (const std::string token : {"magic", "Seed", "coulomb", " backlash", "backlash "}) {
     const std::string spec = "seed+" + token;
-    const std::string msg = InvalidArgumentMessage([&] { ParseModelSpec(spec, Registry()); });
+    const std::string msg = InvalidArgumentMessage([&] { ParseModelSpec(spec, BuiltinCatalog()); });
     ExpectContains(msg, "'" + token + "'");
   }
 }
 
 TEST(ModelSpec, EmptyTokensThrow) {
-  EXPECT_THROW(ParseModelSpec("", Registry()), std::invalid_argument);
+  EXPECT_THROW(ParseModelSpec("", BuiltinCatalog()), std::invalid_argument);
   for (const std::string spec : {"+", "seed+", "+seed", "seed++capstan_friction"}) {
-    const std::string msg = InvalidArgumentMessage([&] { ParseModelSpec(spec, Registry()); });
+    const std::string msg = InvalidArgumentMessage([&] { ParseModelSpec(spec, BuiltinCatalog()); });
     ExpectContains(msg, "'" + spec + "'");
     ExpectContains(msg, "empty");
   }
@@ -146,7 +147,8 @@ TEST(ModelSpec, DuplicatesThrowNamingTheEffect) {
       {"sensor_delay+sensor_delay", "sensor_delay"},
       {"seed+seed", "coulomb_friction"}};
   for (const auto& [spec, dup] : cases) {
-    const std::string msg = InvalidArgumentMessage([&spec = spec] { ParseModelSpec(spec, Registry()); });
+    const std::string msg =
+        InvalidArgumentMessage([&spec = spec] { ParseModelSpec(spec, BuiltinCatalog()); });
     ExpectContains(msg, "'" + dup + "'");
     ExpectContains(msg, "twice");
   }
@@ -168,7 +170,7 @@ TEST(ModelSpec, FormatParseRoundTripOverEveryCatalogSubset) {
       if (mask & (1u << i)) effects.push_back(kCatalog[i]);
     }
     const std::string spec = FormatModelSpec(effects);
-    ASSERT_EQ(ParseModelSpec(spec, Registry()), effects) << spec;
+    ASSERT_EQ(ParseModelSpec(spec, BuiltinCatalog()), effects) << spec;
   }
 }
 
@@ -179,7 +181,7 @@ TEST(ModelSpec, FormatParseRoundTripOverEveryCatalogSubset) {
 // stage then show up as zero friction, zero width, no lag, unit sensor).
 
 TEST(CoulombFriction, ConstantPlusTipLoadTerm) {
-  const auto e = Registry().Create("coulomb_friction");
+  const auto e = BuiltinCatalog().Create("coulomb_friction");
   const double p[] = {0.7, 0.45};  // f0_n, mu_tip
   for (double load : {0.0, 1.0, 4.0, 20.0}) {
     EffectContext c;
@@ -191,7 +193,7 @@ TEST(CoulombFriction, ConstantPlusTipLoadTerm) {
   }
   // Through a model, with the geometry's tip load.
   for (double load : {0.0, 2.5, 10.0}) {
-    TransmissionModel m(Registry(), {"coulomb_friction"}, Geometry(1.6, 0.8, {90}, load));
+    TransmissionModel m(BuiltinCatalog(), {"coulomb_friction"}, Geometry(1.6, 0.8, {90}, load));
     m.SetParameter("coulomb_friction.f0_n", 0.7);
     m.SetParameter("coulomb_friction.mu_tip", 0.45);
     EXPECT_DOUBLE_EQ(m.FrictionLevelN(), 0.7 + 0.45 * load);
@@ -202,7 +204,7 @@ TEST(CoulombFriction, ConstantPlusTipLoadTerm) {
 }
 
 TEST(ViscousFriction, ProportionalToSpeed) {
-  TransmissionModel m(Registry(), {"viscous_friction"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"viscous_friction"}, CatheterConfig::SeedEvaluation());
   const double b = 0.02;
   m.SetParameter("viscous_friction.b_n_per_mm_s", b);
   EXPECT_DOUBLE_EQ(m.FrictionLevelN(), 0.0);  // no force at rest
@@ -214,7 +216,7 @@ TEST(ViscousFriction, ProportionalToSpeed) {
 }
 
 TEST(StribeckFriction, FullAtRestFadesAboveTheStribeckSpeed) {
-  TransmissionModel m(Registry(), {"stribeck_friction"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"stribeck_friction"}, CatheterConfig::SeedEvaluation());
   const double df = 0.8;
   const double vs = 4.0;
   m.SetParameter("stribeck_friction.delta_static_n", df);
@@ -241,8 +243,8 @@ TEST(CapstanFriction, MultipliesAllFrictionByExpMuTheta) {
        {std::vector<double>{}, {45.0}, {90.0, 90.0}, {180.0, 90.0, 90.0}, {360.0, 360.0}}) {
     const CatheterConfig g = Geometry(1.6, 0.8, bends, 0.0);
     const double theta = g.TotalBendRad();
-    TransmissionModel m(Registry(), {"coulomb_friction", "viscous_friction", "capstan_friction"},
-                        g);
+    TransmissionModel m(BuiltinCatalog(),
+                        {"coulomb_friction", "viscous_friction", "capstan_friction"}, g);
     m.SetParameter("capstan_friction.mu", mu);
     const double f0 = m.GetParameter("coulomb_friction.f0_n");
     const double b = m.GetParameter("viscous_friction.b_n_per_mm_s");
@@ -253,10 +255,10 @@ TEST(CapstanFriction, MultipliesAllFrictionByExpMuTheta) {
     EXPECT_NEAR(m.FrictionLevelN(), f0 * std::exp(mu * theta), 1e-12);
   }
   // On its own it scales nothing: no friction to amplify.
-  TransmissionModel alone(Registry(), {"capstan_friction"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel alone(BuiltinCatalog(), {"capstan_friction"}, CatheterConfig::SeedEvaluation());
   EXPECT_DOUBLE_EQ(alone.FrictionMagnitudeN(10.0), 0.0);
   // Hook: the factor itself.
-  const auto e = Registry().Create("capstan_friction");
+  const auto e = BuiltinCatalog().Create("capstan_friction");
   EffectContext c;
   c.total_bend_rad = Deg(270.0);
   const double p[] = {0.4};
@@ -265,7 +267,7 @@ TEST(CapstanFriction, MultipliesAllFrictionByExpMuTheta) {
 }
 
 TEST(GuidewireCompliance, DriveIsBaseMinusForceOverStiffness) {
-  TransmissionModel m(Registry(), {"guidewire_compliance"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"guidewire_compliance"}, CatheterConfig::SeedEvaluation());
   for (double k : {0.5, 5.0, 200.0}) {
     m.SetParameter("guidewire_compliance.k_n_per_mm", k);
     for (double base : {-10.0, 0.0, 12.5}) {
@@ -283,7 +285,7 @@ TEST(Backlash, WidthIsThetaTimesGap) {
     for (const std::vector<double>& bends :
          {std::vector<double>{}, {30.0}, {90.0, 90.0}, {120.0, 60.0, 45.0}}) {
       const CatheterConfig g = Geometry(sheath, wire, bends, 0.0);
-      TransmissionModel m(Registry(), {"backlash"}, g);
+      TransmissionModel m(BuiltinCatalog(), {"backlash"}, g);
       double theta_deg = 0.0;
       for (double a : bends) theta_deg += a;
       EXPECT_NEAR(m.BacklashWidthMm(), Deg(theta_deg) * (sheath - wire), 1e-12)
@@ -291,10 +293,10 @@ TEST(Backlash, WidthIsThetaTimesGap) {
     }
   }
   // The seed evaluation catheter: θ = π, gap 0.8 mm.
-  TransmissionModel seed(Registry(), {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel seed(BuiltinCatalog(), {"backlash"}, CatheterConfig::SeedEvaluation());
   EXPECT_NEAR(seed.BacklashWidthMm(), std::numbers::pi * 0.8, 1e-12);
   // Width does not depend on friction.
-  TransmissionModel loaded(Registry(), {"coulomb_friction", "backlash"},
+  TransmissionModel loaded(BuiltinCatalog(), {"coulomb_friction", "backlash"},
                            Geometry(1.6, 0.8, {90.0, 90.0}, 10.0));
   EXPECT_NEAR(loaded.BacklashWidthMm(), std::numbers::pi * 0.8, 1e-12);
 }
@@ -304,7 +306,7 @@ TEST(FrictionBacklash, WidthGrowsWithTheFrictionLevel) {
   const double bpn = 0.2;
   for (double load : {0.0, 1.0, 5.0, 20.0}) {
     const CatheterConfig g = Geometry(1.6, 0.8, {90.0, 90.0}, load);
-    TransmissionModel m(Registry(), {"coulomb_friction", "friction_backlash"}, g);
+    TransmissionModel m(BuiltinCatalog(), {"coulomb_friction", "friction_backlash"}, g);
     m.SetParameter("friction_backlash.a", a);
     m.SetParameter("friction_backlash.b_per_n", bpn);
     const double level =
@@ -315,7 +317,7 @@ TEST(FrictionBacklash, WidthGrowsWithTheFrictionLevel) {
   }
   // The level is the breakaway friction: Stribeck counts, viscous (zero at rest) does not.
   TransmissionModel s(
-      Registry(),
+      BuiltinCatalog(),
       {"coulomb_friction", "viscous_friction", "stribeck_friction", "friction_backlash"},
       CatheterConfig::SeedEvaluation());
   const double level =
@@ -326,14 +328,14 @@ TEST(FrictionBacklash, WidthGrowsWithTheFrictionLevel) {
                    s.GetParameter("friction_backlash.b_per_n") * level),
               1e-12);
   // Without any friction effect only the zero-friction factor a remains.
-  TransmissionModel bare(Registry(), {"friction_backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel bare(BuiltinCatalog(), {"friction_backlash"}, CatheterConfig::SeedEvaluation());
   EXPECT_NEAR(bare.BacklashWidthMm(),
               std::numbers::pi * 0.8 * bare.GetParameter("friction_backlash.a"), 1e-12);
 }
 
 TEST(FrictionBacklash, ReplacesTheGeometricWidthInPipelineOrder) {
-  const Names effects = ParseModelSpec("seed+friction_backlash", Registry());
-  TransmissionModel m(Registry(), effects, CatheterConfig::SeedEvaluation());
+  const Names effects = ParseModelSpec("seed+friction_backlash", BuiltinCatalog());
+  TransmissionModel m(BuiltinCatalog(), effects, CatheterConfig::SeedEvaluation());
   const double factor = m.GetParameter("friction_backlash.a") +
                         m.GetParameter("friction_backlash.b_per_n") * m.FrictionLevelN();
   EXPECT_NEAR(m.BacklashWidthMm(), std::numbers::pi * 0.8 * factor, 1e-12);
@@ -341,19 +343,19 @@ TEST(FrictionBacklash, ReplacesTheGeometricWidthInPipelineOrder) {
 }
 
 TEST(DeadzoneTraversal, TimeConstantFromItsParameter) {
-  const auto e = Registry().Create("deadzone_traversal");
+  const auto e = BuiltinCatalog().Create("deadzone_traversal");
   const double p[] = {0.07};
   EXPECT_DOUBLE_EQ(e->TraversalTimeConstantS(p), 0.07);
-  TransmissionModel m(Registry(), {"backlash", "deadzone_traversal"},
+  TransmissionModel m(BuiltinCatalog(), {"backlash", "deadzone_traversal"},
                       CatheterConfig::SeedEvaluation());
   m.SetParameter("deadzone_traversal.tau_s", 0.035);
   EXPECT_DOUBLE_EQ(m.TraversalTimeConstantS(), 0.035);
-  TransmissionModel none(Registry(), {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel none(BuiltinCatalog(), {"backlash"}, CatheterConfig::SeedEvaluation());
   EXPECT_DOUBLE_EQ(none.TraversalTimeConstantS(), 0.0);
 }
 
 TEST(DeadzoneTraversal, OneTimeConstantClosesSixtyThreePercentOfTheGap) {
-  TransmissionModel m(Registry(), {"backlash", "deadzone_traversal"},
+  TransmissionModel m(BuiltinCatalog(), {"backlash", "deadzone_traversal"},
                       CatheterConfig::SeedEvaluation());
   const double tau = 0.02;
   m.SetParameter("deadzone_traversal.tau_s", tau);
@@ -378,7 +380,7 @@ TEST(DeadzoneTraversal, OneTimeConstantClosesSixtyThreePercentOfTheGap) {
 
 TEST(DeadzoneTraversal, InsideTheBandTheTipDoesNotMove) {
   for (const Names& effects : {Names{"backlash"}, Names{"backlash", "deadzone_traversal"}}) {
-    TransmissionModel m(Registry(), effects, CatheterConfig::SeedEvaluation());
+    TransmissionModel m(BuiltinCatalog(), effects, CatheterConfig::SeedEvaluation());
     const double half = 0.5 * m.BacklashWidthMm();
     for (double offset : {-0.99, -0.5, 0.0, 0.3, 0.99}) {
       const double tip = 2.0 + offset * half;
@@ -389,33 +391,33 @@ TEST(DeadzoneTraversal, InsideTheBandTheTipDoesNotMove) {
 }
 
 TEST(DeadzoneTraversal, WithoutItTheTipJumpsToTheBandEdge) {
-  TransmissionModel m(Registry(), {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"backlash"}, CatheterConfig::SeedEvaluation());
   const double half = 0.5 * m.BacklashWidthMm();
   EXPECT_DOUBLE_EQ(m.StepTip(0.0, 5.0, 1e-4), 5.0 - half);
   EXPECT_DOUBLE_EQ(m.StepTip(0.0, -5.0, 1e-4), -5.0 + half);
   // And with no deadzone at all the tip is the drive.
-  TransmissionModel rigid(Registry(), {"coulomb_friction"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel rigid(BuiltinCatalog(), {"coulomb_friction"}, CatheterConfig::SeedEvaluation());
   EXPECT_DOUBLE_EQ(rigid.StepTip(0.0, 5.0, 1e-4), 5.0);
   EXPECT_DOUBLE_EQ(rigid.StepTip(3.0, -1.25, 1e-4), -1.25);
 }
 
 TEST(SensorDelay, DelayFromItsParameter) {
-  const auto e = Registry().Create("sensor_delay");
+  const auto e = BuiltinCatalog().Create("sensor_delay");
   const double p[] = {0.012};
   EXPECT_DOUBLE_EQ(e->SensorDelayS(p), 0.012);
   EXPECT_DOUBLE_EQ(e->SensorScale(p), 1.0);
-  TransmissionModel m(Registry(), {"sensor_delay"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"sensor_delay"}, CatheterConfig::SeedEvaluation());
   m.SetParameter("sensor_delay.delay_s", 0.03);
   EXPECT_DOUBLE_EQ(m.SensorDelayS(), 0.03);
   EXPECT_DOUBLE_EQ(m.SensorScale(), 1.0);
 }
 
 TEST(TipSensorScale, GainFromItsParameter) {
-  const auto e = Registry().Create("tip_sensor_scale");
+  const auto e = BuiltinCatalog().Create("tip_sensor_scale");
   const double p[] = {0.9};
   EXPECT_DOUBLE_EQ(e->SensorScale(p), 0.9);
   EXPECT_DOUBLE_EQ(e->SensorDelayS(p), 0.0);
-  TransmissionModel m(Registry(), {"tip_sensor_scale"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"tip_sensor_scale"}, CatheterConfig::SeedEvaluation());
   m.SetParameter("tip_sensor_scale.scale", 1.2);
   EXPECT_DOUBLE_EQ(m.SensorScale(), 1.2);
   EXPECT_DOUBLE_EQ(m.SensorDelayS(), 0.0);
@@ -428,7 +430,7 @@ TEST(Effects, NeutralHooksOfEveryEffect) {
   c.gap_mm = 0.5;
   c.tip_load_n = 3.0;
   for (const std::string& name : kCatalog) {
-    const auto e = Registry().Create(name);
+    const auto e = BuiltinCatalog().Create(name);
     std::vector<double> p;
     for (const ParameterSpec& s : e->parameters()) p.push_back(s.default_value);
     const double* pp = p.empty() ? nullptr : p.data();

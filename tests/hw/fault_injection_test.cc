@@ -20,7 +20,8 @@ struct Rig {
 
 TEST(FaultInjectingHardware, MirrorsTheInnerInterfacesAndPassesReadingsThroughOutsideFaults) {
   Rig rig;
-  FaultInjectingHardware f(rig.plant, {{std::string(iface::kTipPosition), false, FaultKind::kNaN, 1.0, 1.01, 0}});
+  FaultInjectingHardware f(
+      rig.plant, {{std::string(iface::kTipPosition), false, FaultKind::kNaN, 1.0, 1.01, 0}});
   ASSERT_EQ(f.state_interfaces().size(), rig.plant.state_interfaces().size());
   for (std::size_t i = 0; i < f.state_interfaces().size(); ++i)
     EXPECT_EQ(f.state_interfaces()[i].name, rig.plant.state_interfaces()[i].name);
@@ -39,14 +40,16 @@ TEST(FaultInjectingHardware, MirrorsTheInnerInterfacesAndPassesReadingsThroughOu
 
 TEST(FaultInjectingHardware, CorruptsReadingsInsideTheirWindowsAndCountsThem) {
   Rig rig;
-  const std::string tip_name(iface::kTipPosition), base_name(iface::kBasePosition), force_name(iface::kSensorForce);
+  const std::string tip_name(iface::kTipPosition), base_name(iface::kBasePosition),
+      force_name(iface::kSensorForce);
   FaultInjectingHardware f(rig.plant, {{tip_name, false, FaultKind::kDropout, 0.010, 0.020, 0},
                                        {base_name, false, FaultKind::kPosInf, 0.030, 0.031, 0},
                                        {force_name, false, FaultKind::kOffset, 0.040, 0.045, 3.0},
                                        {tip_name, false, FaultKind::kNaN, 0.050, 0.052, 0}});
   f.Configure();
   f.Activate();
-  const std::size_t tip = f.StateIndex(iface::kTipPosition), base = f.StateIndex(iface::kBasePosition),
+  const std::size_t tip = f.StateIndex(iface::kTipPosition),
+                    base = f.StateIndex(iface::kBasePosition),
                     force = f.StateIndex(iface::kSensorForce);
   double frozen = 0.0;
   for (int k = 0; k < 60; ++k) {
@@ -80,8 +83,10 @@ TEST(FaultInjectingHardware, CorruptsReadingsInsideTheirWindowsAndCountsThem) {
 
 TEST(FaultInjectingHardware, RejectsAFaultOnAnUnknownInterfaceOrAnInvertedWindow) {
   Rig rig;
-  EXPECT_THROW(FaultInjectingHardware(rig.plant, {{"no/such", false, FaultKind::kNaN, 0, 1, 0}}), std::invalid_argument);
-  EXPECT_THROW(FaultInjectingHardware(rig.plant, {{std::string(iface::kTipPosition), false, FaultKind::kNaN, 1, 0, 0}}),
+  EXPECT_THROW(FaultInjectingHardware(rig.plant, {{"no/such", false, FaultKind::kNaN, 0, 1, 0}}),
+               std::invalid_argument);
+  EXPECT_THROW(FaultInjectingHardware(rig.plant, {{std::string(iface::kTipPosition), false,
+                                                   FaultKind::kNaN, 1, 0, 0}}),
                std::invalid_argument);
 }
 

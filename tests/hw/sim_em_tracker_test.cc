@@ -16,7 +16,8 @@ TEST(SimEmTracker, SamplesAtItsRateOnItsClockInItsFrameWithTheSetNoiseAndDropout
   o.noise_rms_mm = 0.3;
   o.clock_offset_s = 0.5;
   o.dropout_probability = 0.05;
-  o.image_to_em = Eigen::Translation3d(10, -20, 30) * Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ());
+  o.image_to_em =
+      Eigen::Translation3d(10, -20, 30) * Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ());
   SimEmTracker em(o, 2.0);
   const Eigen::Vector3d tip(1.0, 2.0, 60.0);
   const int n = 20000;

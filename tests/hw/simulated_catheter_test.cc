@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/test_util/constants.h"
 #include "tests/test_util/expect_error.h"
 
 namespace echoservo::hw {
@@ -29,7 +30,7 @@ namespace {
 using ::echoservo::testing::ExpectContains;
 using ::echoservo::testing::InvalidArgumentMessage;
 
-constexpr double kDt = 1e-3;  // control period (s)
+using testing::kDt;
 
 // One control cycle as the controller saw it: the sensors read at t, the force
 // commanded for [t, t + dt), and the ground truth at the moment of the read.
@@ -68,9 +69,9 @@ Reference Triangle(double amplitude, double speed) {
 }
 
 // Drives a SimulatedCatheter through configure/activate and 1 ms cycles.
-class Rig {
+class CatheterRig {
  public:
-  explicit Rig(PlantOptions options, double start_mm = 0.0, double dt = kDt)
+  explicit CatheterRig(PlantOptions options, double start_mm = 0.0, double dt = kDt)
       : plant_(std::move(options)), dt_(dt) {
     plant_.ResetTo(start_mm);
     plant_.Configure();
@@ -155,12 +156,12 @@ PlantOptions Noiseless(PlantOptions o) {
   return o;
 }
 
-double Mean(const std::vector<double>& x) {
+double MeanOf(const std::vector<double>& x) {
   return std::accumulate(x.begin(), x.end(), 0.0) / static_cast<double>(x.size());
 }
 
 double SampleStd(const std::vector<double>& x) {
-  const double m = Mean(x);
+  const double m = MeanOf(x);
   double ss = 0.0;
   for (double v : x) ss += (v - m) * (v - m);
   return std::sqrt(ss / static_cast<double>(x.size() - 1));
@@ -181,11 +182,11 @@ std::vector<Sample> After(const std::vector<Sample>& samples, double t_s) {
   return out;
 }
 
-const SensorParams kSensors{};
+const SensorParams kRigSensors{};
 // Budget for the mean of n force-sensor samples.
 double ForceMeanTolerance(std::size_t n) {
-  return 4.0 * kSensors.force_noise_n / std::sqrt(static_cast<double>(n)) +
-         0.5 * kSensors.force_quantum_n;
+  return 4.0 * kRigSensors.force_noise_n / std::sqrt(static_cast<double>(n)) +
+         0.5 * kRigSensors.force_quantum_n;
 }
 
 // ----------------------------------------------------------------- lifecycle and API
@@ -319,7 +320,7 @@ TEST(SimulatedCatheter, ParametersApplyOverDefaults) {
 }
 
 TEST(SimulatedCatheter, ResetPutsTheTipAtTheDeadzoneCentre) {
-  Rig rig(Noiseless(Options()), 0.0);
+  CatheterRig rig(Noiseless(Options()), 0.0);
   const double half = 0.5 * rig.model().BacklashWidthMm();
   ASSERT_GT(half, 1.0);
   rig.plant().ResetTo(5.0);
@@ -357,7 +358,7 @@ TEST(SimulatedCatheter, CurrentLimitCapsTheActuatorForce) {
   const ActuatorParams a;
   ASSERT_NEAR(a.PeakForceN(), 26.7, 1e-9);
   for (double cmd : {100.0, -1e6}) {
-    Rig rig(Options(), cmd > 0 ? -20.0 : 20.0);
+    CatheterRig rig(Options(), cmd > 0 ? -20.0 : 20.0);
     const std::vector<Sample> s = rig.ConstantForce(cmd, 0.012);
     double peak = 0.0;
     for (const Sample& x : s) peak = std::max(peak, std::abs(x.actuator));
@@ -383,7 +384,7 @@ TEST(SimulatedCatheter, CurrentLimitCapsTheActuatorForce) {
 }
 
 TEST(SimulatedCatheter, NonFiniteCommandGivesZeroForceAndCountsAFault) {
-  Rig rig(Options());
+  CatheterRig rig(Options());
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();
   double expected_faults = 0.0;
@@ -417,11 +418,11 @@ TEST(SimulatedCatheter, StickSlipAtTheBreakawayLevel) {
         std::vector<std::string>{"coulomb_friction", "viscous_friction", "stribeck_friction",
                                  "backlash"}}) {
     for (double sign : {1.0, -1.0}) {
-      const double level = Rig(Options(effects)).model().FrictionLevelN();
+      const double level = CatheterRig(Options(effects)).model().FrictionLevelN();
       // Below breakaway: static friction balances the force, the base does not move, and
       // the force sensor reads the applied force.
       {
-        Rig rig(Noiseless(Options(effects)));
+        CatheterRig rig(Noiseless(Options(effects)));
         const std::vector<Sample> s = rig.ConstantForce(sign * 0.95 * level, 0.2);
         EXPECT_EQ(rig.plant().truth().base_mm, 0.0);
         EXPECT_EQ(rig.plant().truth().base_velocity_mm_s, 0.0);
@@ -430,7 +431,7 @@ TEST(SimulatedCatheter, StickSlipAtTheBreakawayLevel) {
       }
       // Above it the base breaks away and accelerates in the direction of the force.
       {
-        Rig rig(Noiseless(Options(effects)));
+        CatheterRig rig(Noiseless(Options(effects)));
         const std::vector<Sample> s = rig.ConstantForce(sign * 1.05 * level, 0.2);
         const PlantTruth& t = rig.plant().truth();
         EXPECT_FALSE(t.stuck);
@@ -444,7 +445,7 @@ TEST(SimulatedCatheter, StickSlipAtTheBreakawayLevel) {
   }
   // With Stribeck friction a force between the dynamic and the static level holds the
   // base at rest, although it would keep an already sliding base moving.
-  Rig rig(Noiseless(Options({"coulomb_friction", "stribeck_friction", "backlash"})));
+  CatheterRig rig(Noiseless(Options({"coulomb_friction", "stribeck_friction", "backlash"})));
   const double f0 = rig.model().GetParameter("coulomb_friction.f0_n");
   const double level = rig.model().FrictionLevelN();
   ASSERT_GT(level, f0 + 0.2);
@@ -454,7 +455,7 @@ TEST(SimulatedCatheter, StickSlipAtTheBreakawayLevel) {
 
 TEST(SimulatedCatheter, BreakawayAccelerationFollowsNewton) {
   // Seed friction, F = 1.1 × f0: m dv/dt = F − f0 − b v.
-  Rig rig(Noiseless(Options()));
+  CatheterRig rig(Noiseless(Options()));
   const double f0 = rig.model().GetParameter("coulomb_friction.f0_n");
   const double b = rig.model().GetParameter("viscous_friction.b_n_per_mm_s");
   const double m = ActuatorParams{}.moving_mass_kg / 1000.0;
@@ -473,7 +474,7 @@ TEST(SimulatedCatheter, CoastsToAStopAndSticks) {
   // after a coasting distance x(v0) = (m/b) (v0 − (f0/b) ln(1 + b v0/f0)) and then stays
   // stuck (static friction holds it; no chatter about v = 0). The decaying coil current
   // adds at most an impulse F τ_current at the start, which bounds x from above.
-  Rig rig(Noiseless(Options()), -20.0);
+  CatheterRig rig(Noiseless(Options()), -20.0);
   const double f0 = rig.model().GetParameter("coulomb_friction.f0_n");
   const double b = rig.model().GetParameter("viscous_friction.b_n_per_mm_s");
   const ActuatorParams a;
@@ -509,7 +510,7 @@ TEST(SimulatedCatheter, EndStopsHoldTheBaseAtFullForce) {
   const double x_max = (F + std::sqrt(F * F + 2.0 * k * F * half)) / k;
   ASSERT_LT(x_max, 3.0);  // "small": a few mm against 50.8 mm of travel
   for (double sign : {1.0, -1.0}) {
-    Rig rig(Options(), 0.0);
+    CatheterRig rig(Options(), 0.0);
     const std::vector<Sample> s = rig.ConstantForce(sign * 1000.0, 1.5);
     double deepest = 0.0;
     for (const Sample& x : s) deepest = std::max(deepest, sign * x.truth.base_mm);
@@ -532,28 +533,31 @@ TEST(SimulatedCatheter, EndStopsHoldTheBaseAtFullForce) {
 TEST(SimulatedCatheter, SensorNoiseHasTheSpecifiedSigma) {
   // At rest with no force: the true force is 0 and the true tip is constant, so the
   // readings are pure noise. Rounding to a quantum q adds q²/12 of variance.
-  Rig rig(Options());
+  CatheterRig rig(Options());
   const std::vector<Sample> s = rig.ConstantForce(0.0, 4.0);
   ASSERT_GE(s.size(), 2000u);
   const std::vector<double> force = Collect(s, [](const Sample& x) { return x.sensor; });
   const std::vector<double> tip = Collect(s, [](const Sample& x) { return x.tip; });
-  const double sf = std::hypot(kSensors.force_noise_n, kSensors.force_quantum_n / std::sqrt(12.0));
-  const double st = std::hypot(kSensors.tip_noise_mm, kSensors.tip_quantum_mm / std::sqrt(12.0));
+  const double sf =
+      std::hypot(kRigSensors.force_noise_n, kRigSensors.force_quantum_n / std::sqrt(12.0));
+  const double st =
+      std::hypot(kRigSensors.tip_noise_mm, kRigSensors.tip_quantum_mm / std::sqrt(12.0));
   EXPECT_NEAR(SampleStd(force), sf, 0.15 * sf);
   EXPECT_NEAR(SampleStd(tip), st, 0.15 * st);
   // Unbiased, too.
-  EXPECT_NEAR(Mean(force), 0.0, ForceMeanTolerance(force.size()));
-  EXPECT_NEAR(Mean(tip), 0.0,
-              4.0 * kSensors.tip_noise_mm / std::sqrt(static_cast<double>(tip.size())) +
-                  0.5 * kSensors.tip_quantum_mm);
+  EXPECT_NEAR(MeanOf(force), 0.0, ForceMeanTolerance(force.size()));
+  EXPECT_NEAR(MeanOf(tip), 0.0,
+              4.0 * kRigSensors.tip_noise_mm / std::sqrt(static_cast<double>(tip.size())) +
+                  0.5 * kRigSensors.tip_quantum_mm);
   // Readings sit on the quantisation grid.
   for (std::size_t i = 0; i < 50; ++i) {
-    EXPECT_NEAR(std::remainder(force[i], kSensors.force_quantum_n), 0.0, 1e-12);
-    EXPECT_NEAR(std::remainder(tip[i], kSensors.tip_quantum_mm), 0.0, 1e-12);
+    EXPECT_NEAR(std::remainder(force[i], kRigSensors.force_quantum_n), 0.0, 1e-12);
+    EXPECT_NEAR(std::remainder(tip[i], kRigSensors.tip_quantum_mm), 0.0, 1e-12);
   }
   // Force and tip noise are independent.
   double cov = 0.0;
-  for (std::size_t i = 0; i < s.size(); ++i) cov += (force[i] - Mean(force)) * (tip[i] - Mean(tip));
+  for (std::size_t i = 0; i < s.size(); ++i)
+    cov += (force[i] - MeanOf(force)) * (tip[i] - MeanOf(tip));
   const double corr = cov / static_cast<double>(s.size() - 1) / (SampleStd(force) * SampleStd(tip));
   EXPECT_LT(std::abs(corr), 4.0 / std::sqrt(static_cast<double>(s.size())));
 }
@@ -561,26 +565,27 @@ TEST(SimulatedCatheter, SensorNoiseHasTheSpecifiedSigma) {
 TEST(SimulatedCatheter, NoiseCanBeSwitchedOff) {
   PlantOptions o = Options();
   o.sensor_noise = false;
-  Rig rig(o, 1.23456);
+  CatheterRig rig(o, 1.23456);
   const std::vector<Sample> s = rig.Track(Ramp(1.23456, 8.0), 0.5);
   for (const Sample& x : s) {
     // Only the quantisation is left.
-    EXPECT_NEAR(x.base,
-                kSensors.base_quantum_mm * std::round(x.truth.base_mm / kSensors.base_quantum_mm),
-                1e-12);
-    EXPECT_NEAR(x.tip,
-                kSensors.tip_quantum_mm * std::round(x.truth.tip_mm / kSensors.tip_quantum_mm),
-                1e-12);
     EXPECT_NEAR(
-        x.sensor,
-        kSensors.force_quantum_n * std::round(x.truth.friction_force_n / kSensors.force_quantum_n),
+        x.base,
+        kRigSensors.base_quantum_mm * std::round(x.truth.base_mm / kRigSensors.base_quantum_mm),
         1e-12);
+    EXPECT_NEAR(
+        x.tip, kRigSensors.tip_quantum_mm * std::round(x.truth.tip_mm / kRigSensors.tip_quantum_mm),
+        1e-12);
+    EXPECT_NEAR(x.sensor,
+                kRigSensors.force_quantum_n *
+                    std::round(x.truth.friction_force_n / kRigSensors.force_quantum_n),
+                1e-12);
     EXPECT_EQ(x.velocity, x.truth.base_velocity_mm_s);
   }
   // Two noiseless plants agree exactly whatever their seeds.
   PlantOptions o2 = o;
   o2.seed = 99;
-  Rig a(o, 0.0), b(o2, 0.0);
+  CatheterRig a(o, 0.0), b(o2, 0.0);
   const std::vector<Sample> sa = a.Track(Ramp(0.0, 5.0), 0.2);
   const std::vector<Sample> sb = b.Track(Ramp(0.0, 5.0), 0.2);
   for (std::size_t i = 0; i < sa.size(); ++i) {
@@ -590,10 +595,10 @@ TEST(SimulatedCatheter, NoiseCanBeSwitchedOff) {
 }
 
 TEST(SimulatedCatheter, SameSeedSameNoise) {
-  Rig a(Options()), b(Options());
+  CatheterRig a(Options()), b(Options());
   PlantOptions o = Options();
   o.seed = 2;
-  Rig c(o);
+  CatheterRig c(o);
   const auto sa = a.ConstantForce(0.0, 0.1);
   const auto sb = b.ConstantForce(0.0, 0.1);
   const auto sc = c.ConstantForce(0.0, 0.1);
@@ -612,7 +617,7 @@ TEST(SimulatedCatheter, SensorDelayShiftsTheMeasuredTip) {
     PlantOptions o =
         Noiseless(Options({"coulomb_friction", "viscous_friction", "backlash", "sensor_delay"}));
     o.parameters = {{"sensor_delay.delay_s", delay}};
-    Rig rig(o, -10.0);
+    CatheterRig rig(o, -10.0);
     const std::vector<Sample> s = rig.Track(Triangle(10.0, 20.0), 2.0);
     const double lag_cycles = delay / kDt;
     double worst = 0.0;
@@ -649,7 +654,7 @@ TEST(SimulatedCatheter, SensorDelayIsInSecondsWhateverTheCyclePeriod) {
       PlantOptions o =
           Noiseless(Options({"coulomb_friction", "viscous_friction", "backlash", "sensor_delay"}));
       o.parameters = {{"sensor_delay.delay_s", delay}};
-      Rig rig(o, -10.0, dt);
+      CatheterRig rig(o, -10.0, dt);
       const std::vector<Sample> s = After(rig.Track(Ramp(-10.0, v), 1.0), 0.5);
       ASSERT_GT(s.size(), 200u);
       for (const Sample& x : s) {
@@ -666,7 +671,7 @@ TEST(SimulatedCatheter, TipSensorScaleMultipliesTheMeasuredTip) {
     PlantOptions o = Noiseless(
         Options({"coulomb_friction", "viscous_friction", "backlash", "tip_sensor_scale"}));
     o.parameters = {{"tip_sensor_scale.scale", scale}};
-    Rig rig(o, -10.0);
+    CatheterRig rig(o, -10.0);
     const std::vector<Sample> s = rig.Track(Triangle(10.0, 20.0), 1.5);
     double span = 0.0;
     for (const Sample& x : s) {
@@ -682,7 +687,7 @@ TEST(SimulatedCatheter, SensorDelayAndScaleCompose) {
   PlantOptions o = Noiseless(Options(
       {"coulomb_friction", "viscous_friction", "backlash", "sensor_delay", "tip_sensor_scale"}));
   o.parameters = {{"sensor_delay.delay_s", 0.02}, {"tip_sensor_scale.scale", 1.1}};
-  Rig rig(o, -10.0);
+  CatheterRig rig(o, -10.0);
   for (const Sample& x : After(rig.Track(Ramp(-10.0, 10.0), 1.0), 0.5)) {
     EXPECT_NEAR(x.tip, 1.1 * (x.truth.tip_mm - 10.0 * 0.02), 1e-3);
   }
@@ -732,7 +737,7 @@ TEST(SimulatedCatheter, ConstantVelocityForceEqualsModelFriction) {
       PlantOptions o = Options(c.effects);
       o.config.tip_load_n = c.tip_load_n;
       const double start = -sign * 20.0;
-      Rig rig(o, start);
+      CatheterRig rig(o, start);
       const double v = sign * c.speed;
       const double duration = std::min(1.5, 38.0 / c.speed);
       // Skip the first 0.3 s: the loop settles in a few 1/(ζω) ≈ 2.5 ms.
@@ -741,11 +746,11 @@ TEST(SimulatedCatheter, ConstantVelocityForceEqualsModelFriction) {
       // Steady: the base moves at v.
       const std::vector<double> vel =
           Collect(s, [](const Sample& x) { return x.truth.base_velocity_mm_s; });
-      ASSERT_NEAR(Mean(vel), v, 1e-3 * c.speed);
+      ASSERT_NEAR(MeanOf(vel), v, 1e-3 * c.speed);
       const double expected = sign * FrictionByEquation(rig.model(), c.speed);
       ASSERT_NEAR(expected, sign * rig.model().FrictionMagnitudeN(c.speed), 1e-12);
       const std::vector<double> force = Collect(s, [](const Sample& x) { return x.sensor; });
-      EXPECT_NEAR(Mean(force), expected, ForceMeanTolerance(force.size()))
+      EXPECT_NEAR(MeanOf(force), expected, ForceMeanTolerance(force.size()))
           << FormatModelSpec(c.effects) << " load " << c.tip_load_n << " v " << v;
     }
   }
@@ -762,13 +767,13 @@ double HysteresisWidth(const std::vector<Sample>& s, double inner, std::size_t* 
     (x.truth.base_velocity_mm_s > 0.0 ? up : down).push_back(x.tip - x.base);
   }
   *n_per_branch = std::min(up.size(), down.size());
-  return Mean(down) - Mean(up);
+  return MeanOf(down) - MeanOf(up);
 }
 
 double HysteresisTolerance(std::size_t n_per_branch) {
   // Two independent means of n tip samples, quantisation on tip and base.
-  return 4.0 * kSensors.tip_noise_mm * std::sqrt(2.0 / static_cast<double>(n_per_branch)) +
-         0.5 * kSensors.tip_quantum_mm + kSensors.base_quantum_mm;
+  return 4.0 * kRigSensors.tip_noise_mm * std::sqrt(2.0 / static_cast<double>(n_per_branch)) +
+         0.5 * kRigSensors.tip_quantum_mm + kRigSensors.base_quantum_mm;
 }
 
 TEST(SimulatedCatheter, HysteresisWidthIsThetaTimesGap) {
@@ -781,7 +786,7 @@ TEST(SimulatedCatheter, HysteresisWidthIsThetaTimesGap) {
     for (double a : bends) o.config.bends.push_back({a, 40.0});
     const double theta = o.config.TotalBendRad();
     const double width = theta * o.config.GapMm();
-    Rig rig(o, -8.0);
+    CatheterRig rig(o, -8.0);
     const std::vector<Sample> s = After(rig.Track(Triangle(8.0, 4.0), 12.0), 2.0);
     std::size_t n = 0;
     const double measured = HysteresisWidth(s, 4.0, &n);
@@ -794,7 +799,7 @@ TEST(SimulatedCatheter, FrictionBacklashWidthInClosedLoop) {
   for (double load : {0.0, 4.0}) {
     PlantOptions o = Options({"coulomb_friction", "viscous_friction", "friction_backlash"});
     o.config.tip_load_n = load;
-    Rig rig(o, -8.0);
+    CatheterRig rig(o, -8.0);
     const TransmissionModel& m = rig.model();
     const double level =
         m.GetParameter("coulomb_friction.f0_n") + m.GetParameter("coulomb_friction.mu_tip") * load;
@@ -815,7 +820,7 @@ TEST(SimulatedCatheter, ComplianceWidensTheLoopByTwiceForceOverStiffness) {
   PlantOptions o =
       Options({"coulomb_friction", "viscous_friction", "guidewire_compliance", "backlash"});
   o.parameters = {{"guidewire_compliance.k_n_per_mm", 2.0}};
-  Rig rig(o, -8.0);
+  CatheterRig rig(o, -8.0);
   const double speed = 4.0;
   const double width = std::numbers::pi * 0.8 + 2.0 * rig.model().FrictionMagnitudeN(speed) / 2.0;
   const std::vector<Sample> s = After(rig.Track(Triangle(8.0, speed), 12.0), 2.0);
@@ -832,7 +837,7 @@ TEST(SimulatedCatheter, DeadzoneTraversalLagsTheBandEdgeByVTau) {
           Options({"coulomb_friction", "viscous_friction", "backlash", "deadzone_traversal"});
       o.parameters = {{"deadzone_traversal.tau_s", tau}};
       const double start = v > 0 ? -20.0 : 20.0;
-      Rig rig(o, start);
+      CatheterRig rig(o, start);
       const double half = 0.5 * rig.model().BacklashWidthMm();
       // Engage (B/|v| ≤ 0.25 s) and settle (≥ 5 τ) before measuring.
       const std::vector<Sample> s = After(rig.Track(Ramp(start, v), 1.2), 0.6);
@@ -843,12 +848,12 @@ TEST(SimulatedCatheter, DeadzoneTraversalLagsTheBandEdgeByVTau) {
       });
       const std::vector<double> lag_meas =
           Collect(s, [&](const Sample& x) { return sign * ((x.base - sign * half) - x.tip); });
-      EXPECT_NEAR(Mean(lag_truth), std::abs(v) * tau, 0.1 * std::abs(v) * tau) << tau << " " << v;
-      EXPECT_NEAR(Mean(lag_meas), std::abs(v) * tau, 0.1 * std::abs(v) * tau) << tau << " " << v;
+      EXPECT_NEAR(MeanOf(lag_truth), std::abs(v) * tau, 0.1 * std::abs(v) * tau) << tau << " " << v;
+      EXPECT_NEAR(MeanOf(lag_meas), std::abs(v) * tau, 0.1 * std::abs(v) * tau) << tau << " " << v;
     }
   }
   // Without the effect the tip rides the band edge with no lag.
-  Rig rig(Options(), -20.0);
+  CatheterRig rig(Options(), -20.0);
   const double half = 0.5 * rig.model().BacklashWidthMm();
   for (const Sample& x : After(rig.Track(Ramp(-20.0, 10.0), 1.0), 0.6)) {
     EXPECT_NEAR(x.truth.tip_mm, x.truth.drive_mm - half, 1e-9);
@@ -862,7 +867,7 @@ TEST(SimulatedCatheter, DeadzoneTraversalStopsAtOnceOnReversal) {
   const double speed = 4.0;
   PlantOptions o =
       Options({"coulomb_friction", "viscous_friction", "backlash", "deadzone_traversal"});
-  Rig rig(o, -8.0);
+  CatheterRig rig(o, -8.0);
   const double width = rig.model().BacklashWidthMm();
   const double tau = rig.model().TraversalTimeConstantS();
   const std::vector<Sample> s = rig.Track(Triangle(8.0, speed), 8.0);

@@ -21,13 +21,13 @@ using ::echoservo::testing::InvalidArgumentMessage;
 
 using Names = std::vector<std::string>;
 
-const EffectRegistry& Registry() {
+const EffectRegistry& Builtins() {
   static const EffectRegistry registry = EffectRegistry::WithBuiltinEffects();
   return registry;
 }
 
 TransmissionModel FullCatalog(const CatheterConfig& config = CatheterConfig::SeedEvaluation()) {
-  return TransmissionModel(Registry(), Registry().Names(), config);
+  return TransmissionModel(Builtins(), Builtins().Names(), config);
 }
 
 TEST(TransmissionModel, QualifiedParameterNamesInEffectOrder) {
@@ -52,7 +52,7 @@ TEST(TransmissionModel, QualifiedParameterNamesInEffectOrder) {
     // The qualified name is "<effect>.<parameter>" of the effect it belongs to.
     EXPECT_EQ(info.qualified_name, m.effect_names()[info.effect_index] + "." + info.spec.name);
   }
-  EXPECT_EQ(m.effect_names(), Registry().Names());
+  EXPECT_EQ(m.effect_names(), Builtins().Names());
   EXPECT_TRUE(m.HasEffect("backlash"));  // no parameters, still part of the model
   EXPECT_FALSE(m.HasEffect("seed"));
 }
@@ -100,7 +100,7 @@ TEST(TransmissionModel, SetParameterAcceptsTheBoundsAndRejectsBeyond) {
 }
 
 TEST(TransmissionModel, UnknownParameterNamesThrow) {
-  TransmissionModel m(Registry(), {"coulomb_friction", "backlash"},
+  TransmissionModel m(Builtins(), {"coulomb_friction", "backlash"},
                       CatheterConfig::SeedEvaluation());
   // Unqualified, misspelt, or of an effect that is not in this model.
   for (const std::string name : {"f0_n", "coulomb_friction.f0", "coulomb_friction.",
@@ -111,7 +111,7 @@ TEST(TransmissionModel, UnknownParameterNamesThrow) {
 }
 
 TEST(TransmissionModel, SetParametersChecksSizeAndValues) {
-  TransmissionModel m(Registry(), {"coulomb_friction", "viscous_friction", "backlash"},
+  TransmissionModel m(Builtins(), {"coulomb_friction", "viscous_friction", "backlash"},
                       CatheterConfig::SeedEvaluation());
   ASSERT_EQ(m.parameters().size(), 3u);
   const std::string msg = InvalidArgumentMessage([&] { m.set_parameters({1.0, 0.1}); });
@@ -128,33 +128,33 @@ TEST(TransmissionModel, SetParametersChecksSizeAndValues) {
   EXPECT_DOUBLE_EQ(m.FrictionLevelN(), 2.0);  // the derived quantities follow
   EXPECT_NEAR(m.FrictionMagnitudeN(10.0), 2.0 + 0.1, 1e-12);
   // A parameterless model takes an empty vector.
-  TransmissionModel b(Registry(), {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel b(Builtins(), {"backlash"}, CatheterConfig::SeedEvaluation());
   EXPECT_NO_THROW(b.set_parameters({}));
   EXPECT_THROW(b.set_parameters({0.0}), std::invalid_argument);
 }
 
 TEST(TransmissionModel, ConstructorRejectsUnknownDuplicateAndBadGeometry) {
   ExpectContains(InvalidArgumentMessage([] {
-                   TransmissionModel(Registry(), {"coulomb_friction", "sticky"},
+                   TransmissionModel(Builtins(), {"coulomb_friction", "sticky"},
                                      CatheterConfig::SeedEvaluation());
                  }),
                  "'sticky'");
   ExpectContains(
       InvalidArgumentMessage([] {
-        TransmissionModel(Registry(), {"backlash", "backlash"}, CatheterConfig::SeedEvaluation());
+        TransmissionModel(Builtins(), {"backlash", "backlash"}, CatheterConfig::SeedEvaluation());
       }),
       "'backlash'");
   CatheterConfig bad = CatheterConfig::SeedEvaluation();
   bad.guidewire_od_mm = 2.0;
-  ExpectContains(InvalidArgumentMessage([&] { TransmissionModel(Registry(), {"backlash"}, bad); }),
+  ExpectContains(InvalidArgumentMessage([&] { TransmissionModel(Builtins(), {"backlash"}, bad); }),
                  "guidewire_od_mm");
-  TransmissionModel m(Registry(), {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(Builtins(), {"backlash"}, CatheterConfig::SeedEvaluation());
   EXPECT_THROW(m.set_config(bad), std::invalid_argument);
   EXPECT_NEAR(m.BacklashWidthMm(), std::numbers::pi * 0.8, 1e-12);  // unchanged
 }
 
 TEST(TransmissionModel, EmptyModelIsAnIdealTransmission) {
-  const TransmissionModel m(Registry(), {}, CatheterConfig::SeedEvaluation());
+  const TransmissionModel m(Builtins(), {}, CatheterConfig::SeedEvaluation());
   EXPECT_TRUE(m.parameters().empty());
   EXPECT_EQ(m.FrictionMagnitudeN(20.0), 0.0);
   EXPECT_EQ(m.FrictionLevelN(), 0.0);
@@ -194,7 +194,7 @@ TEST(TransmissionModel, FullCatalogComposesEveryStage) {
 }
 
 TEST(TransmissionModel, SetConfigRefreshesTheDerivedQuantities) {
-  TransmissionModel m(Registry(), {"coulomb_friction", "capstan_friction", "backlash"},
+  TransmissionModel m(Builtins(), {"coulomb_friction", "capstan_friction", "backlash"},
                       CatheterConfig::SeedEvaluation());
   CatheterConfig g = CatheterConfig::SeedEvaluation();
   g.bends = {{45.0, 20.0}};

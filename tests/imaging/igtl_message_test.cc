@@ -10,6 +10,7 @@
 #include "imaging/igtl/crc64.h"
 #include "imaging/igtl/image_message.h"
 #include "imaging/igtl/phantom_source.h"
+#include "tests/imaging/igtl_test_bytes.h"
 
 namespace echoservo::imaging::openigtlink {
 namespace {
@@ -32,17 +33,13 @@ std::vector<std::filesystem::path> ReferenceMessages() {
   return out;
 }
 
-void PutBigEndian64(std::vector<std::uint8_t>& m, std::size_t at, std::uint64_t v) {
-  for (int b = 0; b < 8; ++b) m[at + b] = static_cast<std::uint8_t>(v >> (56 - 8 * b));
-}
+using testing::PutBigEndian64;
 void PutBigEndian16(std::vector<std::uint8_t>& m, std::size_t at, std::uint16_t v) {
   m[at] = static_cast<std::uint8_t>(v >> 8);
   m[at + 1] = static_cast<std::uint8_t>(v);
 }
 // Recomputes the header CRC after the body was edited.
-void Recrc(std::vector<std::uint8_t>& m) {
-  PutBigEndian64(m, 50, Crc64Ecma182({m.data() + kHeaderBytes, m.size() - kHeaderBytes}));
-}
+using testing::Recrc;
 
 std::string RejectionReason(const std::vector<std::uint8_t>& m, const DecodeLimits& limits = {}) {
   try {
@@ -252,7 +249,8 @@ TEST(IgtlMessage, RejectsBadInputWithReasons) {
   const float f = 0.3f;
   std::uint32_t bits;
   std::memcpy(&bits, &f, 4);
-  for (int b = 0; b < 4; ++b) skewed[58 + 12 + 12 + b] = static_cast<std::uint8_t>(bits >> (24 - 8 * b));
+  for (int b = 0; b < 4; ++b)
+    skewed[58 + 12 + 12 + b] = static_cast<std::uint8_t>(bits >> (24 - 8 * b));
   Recrc(skewed);
   EXPECT_EQ(RejectionReason(skewed), "bad_geometry");
 }

@@ -14,6 +14,7 @@
 #include "imaging/igtl/ingest.h"
 #include "imaging/igtl/phantom_source.h"
 #include "imaging/igtl/tcp.h"
+#include "tests/imaging/igtl_test_bytes.h"
 
 namespace echoservo::imaging::openigtlink {
 namespace {
@@ -171,12 +172,8 @@ std::vector<std::uint8_t> Frame(double t) {
   return EncodeImage(v);
 }
 
-void PutBigEndian64(std::vector<std::uint8_t>& m, std::size_t at, std::uint64_t v) {
-  for (int b = 0; b < 8; ++b) m[at + b] = static_cast<std::uint8_t>(v >> (56 - 8 * b));
-}
-void Recrc(std::vector<std::uint8_t>& m) {
-  PutBigEndian64(m, 50, Crc64Ecma182({m.data() + kHeaderBytes, m.size() - kHeaderBytes}));
-}
+using testing::PutBigEndian64;
+using testing::Recrc;
 void Append(std::vector<std::uint8_t>& to, const std::vector<std::uint8_t>& m) {
   to.insert(to.end(), m.begin(), m.end());
 }

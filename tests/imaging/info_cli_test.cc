@@ -24,13 +24,16 @@ TEST(InfoCli, SequenceJson) {
   EXPECT_EQ(j["spacing"], nlohmann::json({1.0, 1.0, 1.0}));
   EXPECT_EQ(j["element_type"], "MET_UCHAR");
   EXPECT_EQ(j["compressed"], true);
-  EXPECT_NE(std::find(j["frame_fields"].begin(), j["frame_fields"].end(), "ProbeToTrackerTransform"),
-            j["frame_fields"].end());
+  EXPECT_NE(
+      std::find(j["frame_fields"].begin(), j["frame_fields"].end(), "ProbeToTrackerTransform"),
+      j["frame_fields"].end());
   EXPECT_DOUBLE_EQ(j["timestamp_range"][0].get<double>(), 345.627957);
 }
 
 TEST(InfoCli, TrackerOnlyAndVolume) {
-  auto r = RunCli("info " + ShellQuote(kPlus + "WaterTankBottomTranslationTrackerBuffer-trimmed.igs.mha") + " --json");
+  auto r = RunCli("info " +
+                  ShellQuote(kPlus + "WaterTankBottomTranslationTrackerBuffer-trimmed.igs.mha") +
+                  " --json");
   ASSERT_EQ(r.rc, 0) << r.err;
   auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["frames"], 801);

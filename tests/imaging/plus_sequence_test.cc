@@ -10,6 +10,7 @@
 #include "imaging/io/recording.h"
 #include "imaging/io/volume_io.h"
 #include "tests/test_util/expect_error.h"
+#include "tests/test_util/file_bytes.h"
 #include "tests/test_util/temp_dir.h"
 
 namespace echoservo::imaging {
@@ -21,14 +22,8 @@ namespace fs = std::filesystem;
 
 const fs::path kData = fs::path(ECHOSERVO_DATA_DIR) / "plus";
 
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
-void Spit(const fs::path& p, const std::string& s) {
-  std::ofstream out(p, std::ios::binary | std::ios::trunc);
-  out << s;
-}
+using echoservo::testing::Slurp;
+using echoservo::testing::Spit;
 
 void ExpectSameSequence(const PlusSequence& a, const PlusSequence& b) {
   EXPECT_EQ(a.frame_dims, b.frame_dims);
@@ -38,7 +33,8 @@ void ExpectSameSequence(const PlusSequence& a, const PlusSequence& b) {
   EXPECT_EQ(a.origin_mm, b.origin_mm);
   EXPECT_EQ(a.direction, b.direction);
   ASSERT_EQ(a.frames.size(), b.frames.size());
-  for (std::size_t i = 0; i < a.frames.size(); ++i) EXPECT_EQ(a.frames[i].fields, b.frames[i].fields) << i;
+  for (std::size_t i = 0; i < a.frames.size(); ++i)
+    EXPECT_EQ(a.frames[i].fields, b.frames[i].fields) << i;
   EXPECT_TRUE(a.pixels == b.pixels);
 }
 
@@ -71,7 +67,8 @@ TEST(PlusSequence, SpinePhantomFreehand) {
 }
 
 TEST(PlusSequence, TrackerOnlyFiles) {
-  const auto s = ReadPlusSequence(kData / "WaterTankBottomTranslationTrackerBuffer-trimmed.igs.mha");
+  const auto s =
+      ReadPlusSequence(kData / "WaterTankBottomTranslationTrackerBuffer-trimmed.igs.mha");
   EXPECT_EQ(s.frames.size(), 801u);
   EXPECT_EQ(s.frame_dims, (std::array<int, 3>{0, 0, 0}));
   EXPECT_EQ(s.element_type, "MET_OTHER");
@@ -94,7 +91,8 @@ TEST(PlusSequence, StatusQuirks) {
   EXPECT_FALSE(interp.frames[0].Field("ReferenceToTrackerTransformStatus"));
   EXPECT_TRUE(interp.frames[0].Field("Stylus"));
   bool saw_invalid = false;
-  for (const auto& f : interp.frames) saw_invalid = saw_invalid || !f.TransformValid("ProbeToTracker");
+  for (const auto& f : interp.frames)
+    saw_invalid = saw_invalid || !f.TransformValid("ProbeToTracker");
   EXPECT_TRUE(saw_invalid);
   EXPECT_EQ(*interp.frames[7].TransformStatus("ProbeToTracker"), "INVALID");
 
@@ -141,7 +139,8 @@ TEST(PlusSequence, VolumesRoundTripThroughA3DSequence) {
     v.set_timestamp_s(12.5 + 0.05 * i);
     v.set_frame_index(100 + i);
     Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
-    p.linear() = Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
+    p.linear() =
+        Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
     p.translation() = Eigen::Vector3d(1, 2, 3 + i);
     v.set_probe_to_reference(p);
     v.set_image_to_probe(p.inverse());
@@ -164,9 +163,12 @@ TEST(PlusSequence, VolumesRoundTripThroughA3DSequence) {
     EXPECT_EQ(v.direction(), g.direction);
     EXPECT_EQ(v.timestamp_s(), vols[static_cast<std::size_t>(i)].timestamp_s());
     EXPECT_EQ(v.frame_index(), 100 + i);
-    EXPECT_TRUE(v.probe_to_reference().matrix() == vols[static_cast<std::size_t>(i)].probe_to_reference().matrix());
-    EXPECT_TRUE(v.image_to_probe().matrix() == vols[static_cast<std::size_t>(i)].image_to_probe().matrix());
-    EXPECT_TRUE(std::equal(v.voxels().begin(), v.voxels().end(), vols[static_cast<std::size_t>(i)].voxels().begin()));
+    EXPECT_TRUE(v.probe_to_reference().matrix() ==
+                vols[static_cast<std::size_t>(i)].probe_to_reference().matrix());
+    EXPECT_TRUE(v.image_to_probe().matrix() ==
+                vols[static_cast<std::size_t>(i)].image_to_probe().matrix());
+    EXPECT_TRUE(std::equal(v.voxels().begin(), v.voxels().end(),
+                           vols[static_cast<std::size_t>(i)].voxels().begin()));
   }
   EXPECT_FALSE(source->Next());
 }
@@ -190,7 +192,8 @@ TEST(OpenRecording, SingleVolumeAndFolder) {
     ++n;
   }
   EXPECT_EQ(n, 2);
-  ExpectContains(InvalidArgumentMessage([&] { OpenRecording(dir.path() / "missing"); }), "no such file");
+  ExpectContains(InvalidArgumentMessage([&] { OpenRecording(dir.path() / "missing"); }),
+                 "no such file");
 }
 
 class CorruptSequence : public ::testing::Test {
@@ -213,7 +216,8 @@ TEST_F(CorruptSequence, Truncated) {
 
 TEST_F(CorruptSequence, FlippedCompressedBytes) {
   std::string t = text;
-  for (std::size_t i = t.size() / 2; i < t.size() / 2 + 64; ++i) t[i] = static_cast<char>(t[i] ^ 0xA5);
+  for (std::size_t i = t.size() / 2; i < t.size() / 2 + 64; ++i)
+    t[i] = static_cast<char>(t[i] ^ 0xA5);
   ExpectContains(Error(t), "corrupt compressed data");
 }
 

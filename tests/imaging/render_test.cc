@@ -1,6 +1,5 @@
 // The slice/MIP panel and the 3D view of imaging/render, and `echoservo render`.
 #include <gtest/gtest.h>
-
 #include <unistd.h>
 
 #include <chrono>
@@ -72,11 +71,10 @@ TEST(RenderSlices, WritesPngOfTheLayoutSize) {
     EXPECT_LE(p.y0 + p.height, img.rows);
     for (std::size_t b = a + 1; b < 6; ++b) {
       const auto& q = layout.panels[b];
-      EXPECT_TRUE(cv::Rect(p.x0, p.y0, p.width, p.height)
-                      .area() > 0 &&
-                  (cv::Rect(p.x0, p.y0, p.width, p.height) &
-                   cv::Rect(q.x0, q.y0, q.width, q.height))
-                          .area() == 0);
+      EXPECT_TRUE(
+          cv::Rect(p.x0, p.y0, p.width, p.height).area() > 0 &&
+          (cv::Rect(p.x0, p.y0, p.width, p.height) & cv::Rect(q.x0, q.y0, q.width, q.height))
+                  .area() == 0);
     }
   }
 }
@@ -165,9 +163,9 @@ TEST(RenderSlices, RejectsBadOverlays) {
   RenderOverlays o;
   o.axis_point_mm = Eigen::Vector3d::Zero();
   o.axis_direction = Eigen::Vector3d::Zero();
-  ExpectContains(echoservo::testing::InvalidArgumentMessage(
-                     [&] { RenderSlicesPng(v, o, "/tmp/never.png"); }),
-                 "axis direction is zero");
+  ExpectContains(
+      echoservo::testing::InvalidArgumentMessage([&] { RenderSlicesPng(v, o, "/tmp/never.png"); }),
+      "axis direction is zero");
   RenderOverlays nan;
   nan.tip_mm = Eigen::Vector3d(std::nan(""), 0, 0);
   ExpectContains(echoservo::testing::InvalidArgumentMessage(
@@ -299,7 +297,8 @@ TEST(RenderCli, ThreeDUnderXvfb) {
   for (int attempt = 0; attempt < 4; ++attempt) {
     const int server = 200 + static_cast<int>(::getpid() % 500) + 7 * attempt;
     r = RunShell("xvfb-run -n " + std::to_string(server) + " -f " +
-                 ShellQuote((dir.path() / ("xauth" + std::to_string(attempt))).string()) + " " + args);
+                 ShellQuote((dir.path() / ("xauth" + std::to_string(attempt))).string()) + " " +
+                 args);
     if (r.rc == 0 || r.err.find("cannot open X display") == std::string::npos) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(500 * (attempt + 1)));
   }

@@ -21,11 +21,11 @@ namespace echoservo::imaging {
 namespace {
 
 namespace fs = std::filesystem;
-using testing::ExpectContains;
-using testing::InvalidArgumentMessage;
 using test_frames::ExpectFrame;
 using test_frames::Frame;
 using test_frames::Geometry;
+using testing::ExpectContains;
+using testing::InvalidArgumentMessage;
 
 TEST(SequenceWriter, WhatItWritesReadsBackExactlyAfterEveryFrame) {
   const testing::TempDir dir("seqw", true);
@@ -64,7 +64,8 @@ TEST(SequenceWriter, DataPastTheFramesTheHeaderListsIsIgnored) {
   {
     std::ofstream raw(dir.path() / "v.raw", std::ios::binary | std::ios::app);
     const Volume next = Frame(3);
-    raw.write(reinterpret_cast<const char*>(next.voxels().data()), static_cast<std::streamsize>(next.voxels().size() / 2));
+    raw.write(reinterpret_cast<const char*>(next.voxels().data()),
+              static_cast<std::streamsize>(next.voxels().size() / 2));
   }
   const PlusSequence s = ReadPlusSequence(header);
   ASSERT_EQ(s.frames.size(), 3u);
@@ -73,7 +74,8 @@ TEST(SequenceWriter, DataPastTheFramesTheHeaderListsIsIgnored) {
 
 TEST(SequenceWriter, BadPathsAndGeometryChangesAreClearErrorsThatKeepTheRecording) {
   const testing::TempDir dir("seqw_bad", true);
-  ExpectContains(InvalidArgumentMessage([&] { SequenceWriter w(dir.path() / "v.igs.mha"); }), ".mhd");
+  ExpectContains(InvalidArgumentMessage([&] { SequenceWriter w(dir.path() / "v.igs.mha"); }),
+                 ".mhd");
   SequenceWriter w(dir.path() / "v.mhd");
   w.Append(Frame(0));
   w.Append(Frame(1));
@@ -133,7 +135,8 @@ TEST(SequenceWriter, AWriterKilledAtAnyInstantLosesAtMostTheFrameInFlight) {
     int status = 0;
     ASSERT_EQ(::waitpid(child, &status, 0), child);
     ASSERT_TRUE(WIFSIGNALED(status));
-    for (ssize_t n; (n = ::read(pipe_fds[0], buf, sizeof buf)) > 0;) reported += static_cast<int>(n);
+    for (ssize_t n; (n = ::read(pipe_fds[0], buf, sizeof buf)) > 0;)
+      reported += static_cast<int>(n);
     ::close(pipe_fds[0]);
 
     const PlusSequence s = ReadPlusSequence(header);

@@ -25,7 +25,8 @@ double MedianInsideVoxel(const Volume& v) {
     for (int j = 0; j < v.dims().y(); j += 2)
       for (int i = 0; i < v.dims().x(); i += 2) {
         Eigen::Vector3d q;
-        if (probe.ToPolar(v.IndexToPhysical(Eigen::Vector3d(i, j, k)), &q)) vals.push_back(v.at(i, j, k));
+        if (probe.ToPolar(v.IndexToPhysical(Eigen::Vector3d(i, j, k)), &q))
+          vals.push_back(v.at(i, j, k));
       }
   if (vals.empty()) return 0;
   std::nth_element(vals.begin(), vals.begin() + static_cast<long>(vals.size() / 2), vals.end());
@@ -37,10 +38,14 @@ double MaxNear(const Volume& v, const Eigen::Vector3d& p, double radius_mm) {
   double best = 0;
   const Eigen::Vector3d c = v.PhysicalToIndex(p);
   const Eigen::Vector3d r = radius_mm * v.spacing_mm().cwiseInverse();
-  for (int k = static_cast<int>(std::floor(c.z() - r.z())); k <= static_cast<int>(std::ceil(c.z() + r.z())); ++k)
-    for (int j = static_cast<int>(std::floor(c.y() - r.y())); j <= static_cast<int>(std::ceil(c.y() + r.y())); ++j)
-      for (int i = static_cast<int>(std::floor(c.x() - r.x())); i <= static_cast<int>(std::ceil(c.x() + r.x())); ++i) {
-        if (i < 0 || j < 0 || k < 0 || i >= v.dims().x() || j >= v.dims().y() || k >= v.dims().z()) continue;
+  for (int k = static_cast<int>(std::floor(c.z() - r.z()));
+       k <= static_cast<int>(std::ceil(c.z() + r.z())); ++k)
+    for (int j = static_cast<int>(std::floor(c.y() - r.y()));
+         j <= static_cast<int>(std::ceil(c.y() + r.y())); ++j)
+      for (int i = static_cast<int>(std::floor(c.x() - r.x()));
+           i <= static_cast<int>(std::ceil(c.x() + r.x())); ++i) {
+        if (i < 0 || j < 0 || k < 0 || i >= v.dims().x() || j >= v.dims().y() || k >= v.dims().z())
+          continue;
         if ((v.IndexToPhysical(Eigen::Vector3d(i, j, k)) - p).norm() > radius_mm) continue;
         best = std::max(best, static_cast<double>(v.at(i, j, k)));
       }
@@ -48,7 +53,8 @@ double MaxNear(const Volume& v, const Eigen::Vector3d& p, double radius_mm) {
 }
 
 // Mean of the brightest voxels near the axis over the last `length_mm` before the tip.
-double AxisBrightness(const Volume& v, const Eigen::Vector3d& tip, const Eigen::Vector3d& dir, double length_mm) {
+double AxisBrightness(const Volume& v, const Eigen::Vector3d& tip, const Eigen::Vector3d& dir,
+                      double length_mm) {
   double sum = 0;
   int n = 0;
   for (double s = 0.5; s <= length_mm; s += 1.0, ++n) sum += MaxNear(v, tip - s * dir, 1.2);
@@ -133,7 +139,10 @@ double BrightestDepthOnCentralBeam(const Volume& v) {
   double best = -1, best_z = 0;
   for (double z = 10; z < 115; z += 0.05) {
     const double x = v.Sample(Eigen::Vector3d(0, 0, z));
-    if (x > best) { best = x; best_z = z; }
+    if (x > best) {
+      best = x;
+      best_z = z;
+    }
   }
   return best_z;
 }
@@ -183,13 +192,19 @@ TEST(SimScanner, DeterministicForAFixedSeed) {
   SimulatedScanner a(o), b(o);
   for (int i = 0; i < 2; ++i) {
     const auto fa = a.Next(), fb = b.Next();
-    ASSERT_TRUE(std::equal(fa->volume.voxels().begin(), fa->volume.voxels().end(), fb->volume.voxels().begin()));
+    ASSERT_TRUE(std::equal(fa->volume.voxels().begin(), fa->volume.voxels().end(),
+                           fb->volume.voxels().begin()));
   }
   o.seed = 8;
   SimulatedScanner c(o);
-  SimulatedScanner d([] { SimulatedScannerOptions x; x.seed = 7; return x; }());
+  SimulatedScanner d([] {
+    SimulatedScannerOptions x;
+    x.seed = 7;
+    return x;
+  }());
   const auto fc = c.Next(), fd = d.Next();
-  EXPECT_FALSE(std::equal(fc->volume.voxels().begin(), fc->volume.voxels().end(), fd->volume.voxels().begin()));
+  EXPECT_FALSE(std::equal(fc->volume.voxels().begin(), fc->volume.voxels().end(),
+                          fd->volume.voxels().begin()));
 }
 
 TEST(SimScanner, StreamTimestampsIndicesAndEnd) {
@@ -266,9 +281,10 @@ TEST(SimScanner, OptionErrorsNameTheField) {
 
 TEST(SimScene, TraceAllFindsEntryAndExitWithIncidence) {
   Scene scene;
-  const int id = scene.AddMesh(MakeCylinder(1.0, 20.0), AcousticProperties::Sheath(),
-                               Eigen::Isometry3d(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY())) *
-                                   Eigen::Translation3d(0, 0, -10));  // axis along world x
+  const int id =
+      scene.AddMesh(MakeCylinder(1.0, 20.0), AcousticProperties::Sheath(),
+                    Eigen::Isometry3d(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY())) *
+                        Eigen::Translation3d(0, 0, -10));  // axis along world x
   scene.Commit();
   RayHit hits[4];
   // Along +z from below: crosses the cylinder (axis x, radius 1) at z = ±1.

@@ -23,11 +23,13 @@ TEST(StreamCli, ScannerToIngestOverLoopback) {
   const int port = 20000 + static_cast<int>(::getpid() % 20000);
   // The server waits for its client, streams 20 phantom-free simulated frames at 25 vol/s
   // and exits; it runs in the background of a shell.
-  const std::string server = std::string(ECHOSERVO_CLI) + " scanner --port " + std::to_string(port) +
+  const std::string server = std::string(ECHOSERVO_CLI) + " scanner --port " +
+                             std::to_string(port) +
                              " --frames 20 --rate 25 --json > /dev/null 2>&1 &";
   ASSERT_EQ(std::system(server.c_str()), 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the scanner builds its scene
-  const auto r = RunCli("ingest --connect 127.0.0.1:" + std::to_string(port) + " --frames 20 --duration 20 --json");
+  const auto r = RunCli("ingest --connect 127.0.0.1:" + std::to_string(port) +
+                        " --frames 20 --duration 20 --json");
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["frames"].get<int>(), 20);
@@ -47,7 +49,8 @@ TEST(StreamCli, RecordReplayAndInfo) {
   EXPECT_EQ(i["frames"].get<int>(), 4);
   EXPECT_EQ(i["dims"], nlohmann::json::array({160, 148, 208}));
   const auto fields = i["frame_fields"].get<std::vector<std::string>>();
-  for (const char* f : {"CatheterTip", "CatheterAxisPoint", "CatheterAxisDirection", "Target", "Timestamp"}) {
+  for (const char* f :
+       {"CatheterTip", "CatheterAxisPoint", "CatheterAxisDirection", "Target", "Timestamp"}) {
     EXPECT_NE(std::find(fields.begin(), fields.end(), f), fields.end()) << f;
   }
   const auto replay = RunCli("replay " + ShellQuote(seq.string()) + " --rate max --json");

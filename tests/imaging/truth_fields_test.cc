@@ -4,9 +4,9 @@
 #include "imaging/io/truth_fields.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
-#include <unistd.h>
 
 #include "imaging/io/plus_sequence.h"
 #include "imaging/io/recording.h"
@@ -43,7 +43,9 @@ TEST(TruthFields, RoundTripToNineDigits) {
   EXPECT_LT((back->target_mm - Sample().target_mm).norm(), 1e-7);
 }
 
-TEST(TruthFields, AbsentWithoutTheFlag) { EXPECT_FALSE(TruthFromFields({{"Timestamp", "1.0"}}).has_value()); }
+TEST(TruthFields, AbsentWithoutTheFlag) {
+  EXPECT_FALSE(TruthFromFields({{"Timestamp", "1.0"}}).has_value());
+}
 
 TEST(TruthFields, BadValuesNameTheField) {
   std::map<std::string, std::string> f;
@@ -88,7 +90,8 @@ TEST(TruthFields, SimulatedRecordingCarriesItsTruth) {
     EXPECT_EQ(f->truth->catheter_visible, truths[i].catheter_visible);
     EXPECT_LT((f->truth->tip_mm - truths[i].tip_mm).norm(), 1e-6);
     EXPECT_LT((f->truth->target_mm - truths[i].target_mm).norm(), 1e-6);
-    EXPECT_TRUE(std::equal(f->volume.voxels().begin(), f->volume.voxels().end(), volumes[i].voxels().begin()));
+    EXPECT_TRUE(std::equal(f->volume.voxels().begin(), f->volume.voxels().end(),
+                           volumes[i].voxels().begin()));
   }
   EXPECT_FALSE(source->Next().has_value());
   std::filesystem::remove(path);

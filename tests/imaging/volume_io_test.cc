@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "tests/test_util/expect_error.h"
+#include "tests/test_util/file_bytes.h"
 #include "tests/test_util/temp_dir.h"
 
 namespace echoservo::imaging {
@@ -16,7 +17,7 @@ using testing::ExpectContains;
 using testing::InvalidArgumentMessage;
 namespace fs = std::filesystem;
 
-const fs::path kData = fs::path(ECHOSERVO_DATA_DIR) / "plus";
+const fs::path kPlusData = fs::path(ECHOSERVO_DATA_DIR) / "plus";
 
 Volume MakeVolume() {
   VolumeGeometry g;
@@ -62,7 +63,7 @@ INSTANTIATE_TEST_SUITE_P(Formats, VolumeRoundTrip,
                                            std::pair<std::string, bool>{".vti", false}));
 
 TEST(ReadVolume, RealReconstructedVolume) {
-  const Volume v = ReadVolume(kData / "SpinePhantomFreehandReconstructed.mha");
+  const Volume v = ReadVolume(kPlusData / "SpinePhantomFreehandReconstructed.mha");
   EXPECT_EQ(v.dims(), Eigen::Vector3i(147, 106, 104));
   EXPECT_EQ(v.spacing_mm(), Eigen::Vector3d(0.5, 0.5, 0.5));
   EXPECT_EQ(v.origin_mm(), Eigen::Vector3d(-74.5217, 165.573, 29.072));
@@ -72,14 +73,8 @@ TEST(ReadVolume, RealReconstructedVolume) {
   EXPECT_GT(nonzero, 1000);
 }
 
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
-void Spit(const fs::path& p, const std::string& s) {
-  std::ofstream out(p, std::ios::binary | std::ios::trunc);
-  out << s;
-}
+using echoservo::testing::Slurp;
+using echoservo::testing::Spit;
 
 TEST(ReadVolume, CorruptFilesGiveClearErrors) {
   testing::TempDir dir("volio", true);
@@ -117,7 +112,8 @@ TEST(ReadVolume, CorruptFilesGiveClearErrors) {
   msg = InvalidArgumentMessage([&] { ReadVolume(flipped); });
   ExpectContains(msg, "flipped.mha");
 
-  ExpectContains(InvalidArgumentMessage([&] { ReadVolume(dir.path() / "none.mha"); }), "no such file");
+  ExpectContains(InvalidArgumentMessage([&] { ReadVolume(dir.path() / "none.mha"); }),
+                 "no such file");
   ExpectContains(InvalidArgumentMessage([&] { ReadVolume(dir.path() / "x.png"); }), "extension");
   const fs::path garbage = dir.path() / "garbage.vti";
   Spit(garbage, "not xml at all");

@@ -55,8 +55,9 @@ std::pair<Sample, Sample> RoundTrip(Publisher<Sample>& pub, Subscriber<Sample>& 
     sent.push_back(make(k));
     EXPECT_TRUE(pub.Publish(sent.back()));
     if (sub.WaitTakeLatest(got, 0.02)) {
-      const auto same = std::find_if(sent.begin(), sent.end(),
-                                     [&](const Sample& s) { return s.sequence_number == got.sequence_number; });
+      const auto same = std::find_if(sent.begin(), sent.end(), [&](const Sample& s) {
+        return s.sequence_number == got.sequence_number;
+      });
       EXPECT_NE(same, sent.end()) << "received a sample never published";
       return {got, same == sent.end() ? got : *same};
     }
@@ -74,22 +75,25 @@ class DdsLinkTest : public ::testing::Test {
 TEST_F(DdsLinkTest, TargetRoundTrip) {
   TargetPublisher pub(tracker_);
   TargetSubscriber sub(servo_);
-  const auto [got, sent] = RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeTarget(seq, NowS()); });
+  const auto [got, sent] =
+      RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeTarget(seq, NowS()); });
   EXPECT_EQ(got, sent);
 }
 
 TEST_F(DdsLinkTest, StateRoundTrip) {
   StatePublisher pub(servo_);
   StateSubscriber sub(tracker_);
-  const auto [got, sent] = RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeState(seq, NowS()); });
+  const auto [got, sent] =
+      RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeState(seq, NowS()); });
   EXPECT_EQ(got, sent);
 }
 
 TEST_F(DdsLinkTest, CommandRoundTrip) {
   CommandPublisher pub(tracker_);
   CommandSubscriber sub(servo_);
-  const auto [got, sent] = RoundTrip(
-      pub, sub, [](std::uint64_t seq) { return MakeCommand(seq, NowS(), ServoAction::kSetStandoff); });
+  const auto [got, sent] = RoundTrip(pub, sub, [](std::uint64_t seq) {
+    return MakeCommand(seq, NowS(), ServoAction::kSetStandoff);
+  });
   EXPECT_EQ(got, sent);
 }
 
@@ -145,8 +149,9 @@ TEST_F(DdsLinkTest, ReliableCommandsAllDeliveredInOrder) {
     got.push_back(s);
   });
   ASSERT_TRUE(Matched(pub, sub));
-  const std::vector<ServoAction> burst = {ServoAction::kEnable, ServoAction::kSetStandoff, ServoAction::kSetStandoff,
-                                          ServoAction::kDisable, ServoAction::kStop};
+  const std::vector<ServoAction> burst = {ServoAction::kEnable, ServoAction::kSetStandoff,
+                                          ServoAction::kSetStandoff, ServoAction::kDisable,
+                                          ServoAction::kStop};
   ASSERT_LE(burst.size(), static_cast<std::size_t>(pub.qos().depth));
   std::vector<ServoCommandSample> sent;
   for (std::size_t i = 0; i < burst.size(); ++i) {
@@ -250,7 +255,8 @@ TEST_F(DdsLinkTest, BadTargetsRejectedCountedAndSubscriberKeepsServing) {
   EXPECT_FALSE(sub.TryTakeLatest(got));
   EXPECT_EQ(sub.stats().validation.accepted, 0u);
   // Still serving: a good estimate goes through.
-  const auto [taken, sent] = RoundTrip(pub, sub, [&](std::uint64_t) { return MakeTarget(++seq, NowS()); });
+  const auto [taken, sent] =
+      RoundTrip(pub, sub, [&](std::uint64_t) { return MakeTarget(++seq, NowS()); });
   EXPECT_EQ(taken.sequence_number, sent.sequence_number);
   EXPECT_GE(sub.stats().validation.accepted, 1u);
 }
@@ -265,8 +271,10 @@ TEST_F(DdsLinkTest, BadCommandsRejectedAndCountedExactly) {
   nan_standoff.standoff_mm = std::numeric_limits<double>::quiet_NaN();
   ServoCommandSample far_standoff = MakeCommand(2, NowS(), ServoAction::kSetStandoff);
   far_standoff.standoff_mm = 2.0 * limits.max_standoff_mm;
-  ServoCommandSample unknown = MakeCommand(3, NowS(), static_cast<ServoAction>(kMaxServoAction + 7));
-  const ServoCommandSample old_enable = MakeCommand(4, NowS() - 10.0 * limits.max_command_age_s, ServoAction::kEnable);
+  ServoCommandSample unknown =
+      MakeCommand(3, NowS(), static_cast<ServoAction>(kMaxServoAction + 7));
+  const ServoCommandSample old_enable =
+      MakeCommand(4, NowS() - 10.0 * limits.max_command_age_s, ServoAction::kEnable);
   const ServoCommandSample future = MakeCommand(5, NowS() + 60.0, ServoAction::kStop);
   for (const ServoCommandSample& s : {nan_standoff, far_standoff, unknown, old_enable, future}) {
     ASSERT_TRUE(pub.Publish(s));
@@ -301,8 +309,8 @@ TEST_F(DdsLinkTest, TooManyHarmonicsThrowsAtPublish) {
   TargetEstimateSample s = MakeTarget(1, NowS());
   s.motion.cos_mm.assign(kMaxHarmonics + 1, 0.0);
   s.motion.sin_mm.assign(kMaxHarmonics + 1, 0.0);
-  echoservo::testing::ExpectContains(echoservo::testing::InvalidArgumentMessage([&] { pub.Publish(s); }),
-                                     "harmonics");
+  echoservo::testing::ExpectContains(
+      echoservo::testing::InvalidArgumentMessage([&] { pub.Publish(s); }), "harmonics");
 }
 
 // The shipped XML profile (the platform's deterministic fallback) and the default
@@ -316,8 +324,8 @@ TEST(DdsLinkDiscovery, LoopbackXmlProfile) {
   Participant b(o);
   CommandPublisher pub(a);
   CommandSubscriber sub(b);
-  const auto [got, sent] =
-      RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeCommand(seq, NowS(), ServoAction::kDisable); });
+  const auto [got, sent] = RoundTrip(
+      pub, sub, [](std::uint64_t seq) { return MakeCommand(seq, NowS(), ServoAction::kDisable); });
   EXPECT_EQ(got, sent);
 }
 
@@ -328,7 +336,8 @@ TEST(DdsLinkDiscovery, DefaultTransports) {
   Participant b(o);
   StatePublisher pub(a);
   StateSubscriber sub(b);
-  const auto [got, sent] = RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeState(seq, NowS()); });
+  const auto [got, sent] =
+      RoundTrip(pub, sub, [](std::uint64_t seq) { return MakeState(seq, NowS()); });
   EXPECT_EQ(got, sent);
 }
 
@@ -344,7 +353,9 @@ TEST(DdsLinkDiscovery, SecurityPropertiesPassThrough) {
 TEST(ParticipantOptionsTest, BadOptionsThrowNamingTheOption) {
   using echoservo::testing::ExpectContains;
   using echoservo::testing::InvalidArgumentMessage;
-  const auto message = [](const ParticipantOptions& o) { return InvalidArgumentMessage([&] { o.Validate(); }); };
+  const auto message = [](const ParticipantOptions& o) {
+    return InvalidArgumentMessage([&] { o.Validate(); });
+  };
   ParticipantOptions domain;
   domain.domain_id = 300;
   ExpectContains(message(domain), "domain_id");

@@ -45,7 +45,9 @@ int AwaitStop(Participant& participant) {
 
 int main(int argc, char** argv) {
   if (argc < 4) {
-    std::fprintf(stderr, "usage: link_test_peer publish-targets|await-stop DOMAIN loopback|default [COUNT]\n");
+    std::fprintf(
+        stderr,
+        "usage: link_test_peer publish-targets|await-stop DOMAIN loopback|default [COUNT]\n");
     return 1;
   }
   const std::string role = argv[1];
@@ -54,7 +56,8 @@ int main(int argc, char** argv) {
   options.name = "link_test_peer";
   options.loopback_only = std::string(argv[3]) == "loopback";
   Participant participant(options);
-  if (role == "publish-targets" && argc == 5) return PublishTargets(participant, std::atol(argv[4]));
+  if (role == "publish-targets" && argc == 5)
+    return PublishTargets(participant, std::atol(argv[4]));
   if (role == "await-stop") return AwaitStop(participant);
   std::fprintf(stderr, "link_test_peer: bad role or arguments\n");
   return 1;

@@ -55,7 +55,8 @@ inline link::CatheterStateSample MakeState(std::uint64_t seq, double t_s) {
   return s;
 }
 
-inline link::ServoCommandSample MakeCommand(std::uint64_t seq, double t_s, link::ServoAction action) {
+inline link::ServoCommandSample MakeCommand(std::uint64_t seq, double t_s,
+                                            link::ServoAction action) {
   link::ServoCommandSample s;
   s.sequence_number = seq;
   s.stamp_s = t_s;

@@ -80,6 +80,7 @@ TEST_P(Ros2MsgTest, MsgAndIdlDeclareTheSameLayout) {
   EXPECT_EQ(msg, idl);
 }
 
-INSTANTIATE_TEST_SUITE_P(Types, Ros2MsgTest, ::testing::Values("TargetEstimate", "CatheterState", "ServoCommand"));
+INSTANTIATE_TEST_SUITE_P(Types, Ros2MsgTest,
+                         ::testing::Values("TargetEstimate", "CatheterState", "ServoCommand"));
 
 }  // namespace

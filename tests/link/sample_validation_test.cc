@@ -63,19 +63,24 @@ TEST(SampleValidation, TargetBadCasesRejectedByReason) {
       {"NaN acquisition", [](auto& s) { s.acquisition_time_s = kNaN; }, Rejection::kNonFinite},
       {"target beyond range", [&](auto& s) { s.target_mm.x() = l.max_abs_position_mm + 1.0; },
        Rejection::kOutOfRange},
-      {"tip beyond range", [&](auto& s) { s.tip_mm.z() = -2.0 * l.max_abs_position_mm; }, Rejection::kOutOfRange},
+      {"tip beyond range", [&](auto& s) { s.tip_mm.z() = -2.0 * l.max_abs_position_mm; },
+       Rejection::kOutOfRange},
       {"axis not unit", [](auto& s) { s.axis *= 2.0; }, Rejection::kOutOfRange},
-      {"frequency low", [&](auto& s) { s.motion.frequency_hz = 0.5 * l.min_frequency_hz; }, Rejection::kOutOfRange},
-      {"frequency high", [&](auto& s) { s.motion.frequency_hz = 2.0 * l.max_frequency_hz; }, Rejection::kOutOfRange},
+      {"frequency low", [&](auto& s) { s.motion.frequency_hz = 0.5 * l.min_frequency_hz; },
+       Rejection::kOutOfRange},
+      {"frequency high", [&](auto& s) { s.motion.frequency_hz = 2.0 * l.max_frequency_hz; },
+       Rejection::kOutOfRange},
       {"confidence above 1", [](auto& s) { s.confidence = 1.5; }, Rejection::kOutOfRange},
       {"confidence negative", [](auto& s) { s.confidence = -0.1; }, Rejection::kOutOfRange},
       {"harmonic beyond range", [&](auto& s) { s.motion.cos_mm[0] = 3.0 * l.max_abs_position_mm; },
        Rejection::kOutOfRange},
-      {"validity before acquisition", [](auto& s) { s.motion.valid_until_s = s.acquisition_time_s - 0.1; },
+      {"validity before acquisition",
+       [](auto& s) { s.motion.valid_until_s = s.acquisition_time_s - 0.1; },
        Rejection::kOutOfRange},
-      {"validity horizon too long", [&](auto& s) { s.motion.valid_until_s += 2.0 * l.max_horizon_s; },
-       Rejection::kOutOfRange},
-      {"cos/sin sizes differ", [](auto& s) { s.motion.sin_mm.pop_back(); }, Rejection::kBadMotionModel},
+      {"validity horizon too long",
+       [&](auto& s) { s.motion.valid_until_s += 2.0 * l.max_horizon_s; }, Rejection::kOutOfRange},
+      {"cos/sin sizes differ", [](auto& s) { s.motion.sin_mm.pop_back(); },
+       Rejection::kBadMotionModel},
       {"too many harmonics",
        [](auto& s) {
          s.motion.cos_mm.assign(kMaxHarmonics + 1, 0.1);
@@ -90,7 +95,8 @@ TEST(SampleValidation, TargetBadCasesRejectedByReason) {
          s.motion.valid_until_s = s.acquisition_time_s + 0.5;
        },
        Rejection::kFutureTimestamp},
-      {"published in the future", [&](auto& s) { s.publication_time_s = kNowS + 10.0 * l.max_future_s; },
+      {"published in the future",
+       [&](auto& s) { s.publication_time_s = kNowS + 10.0 * l.max_future_s; },
        Rejection::kFutureTimestamp},
       {"stale",
        [&](auto& s) {
@@ -100,7 +106,8 @@ TEST(SampleValidation, TargetBadCasesRejectedByReason) {
          s.motion.valid_until_s = s.acquisition_time_s + 0.5;
        },
        Rejection::kStaleTimestamp},
-      {"published before acquired", [](auto& s) { s.publication_time_s = s.acquisition_time_s - 0.01; },
+      {"published before acquired",
+       [](auto& s) { s.publication_time_s = s.acquisition_time_s - 0.01; },
        Rejection::kPublishedBeforeAcquired},
   };
   ExpectRejected(good, cases);
@@ -113,15 +120,20 @@ TEST(SampleValidation, StateBadCasesRejectedByReason) {
       {"NaN base", [](auto& s) { s.base_mm = kNaN; }, Rejection::kNonFinite},
       {"inf force", [](auto& s) { s.force_n = -kInf; }, Rejection::kNonFinite},
       {"NaN stamp", [](auto& s) { s.stamp_s = kNaN; }, Rejection::kNonFinite},
-      {"unknown mode", [](auto& s) { s.mode = static_cast<ServoMode>(kMaxServoMode + 1); }, Rejection::kOutOfRange},
+      {"unknown mode", [](auto& s) { s.mode = static_cast<ServoMode>(kMaxServoMode + 1); },
+       Rejection::kOutOfRange},
       {"unknown fault bit", [](auto& s) { s.faults = fault::kAll + 1; }, Rejection::kOutOfRange},
-      {"base beyond range", [&](auto& s) { s.base_mm = 2.0 * l.max_abs_position_mm; }, Rejection::kOutOfRange},
-      {"force beyond range", [&](auto& s) { s.force_n = 2.0 * l.max_abs_force_n; }, Rejection::kOutOfRange},
+      {"base beyond range", [&](auto& s) { s.base_mm = 2.0 * l.max_abs_position_mm; },
+       Rejection::kOutOfRange},
+      {"force beyond range", [&](auto& s) { s.force_n = 2.0 * l.max_abs_force_n; },
+       Rejection::kOutOfRange},
       {"negative estimate age", [](auto& s) { s.estimate_age_s = -1.0; }, Rejection::kOutOfRange},
-      {"standoff beyond range", [&](auto& s) { s.standoff_mm = l.max_standoff_mm + 1.0; }, Rejection::kOutOfRange},
+      {"standoff beyond range", [&](auto& s) { s.standoff_mm = l.max_standoff_mm + 1.0; },
+       Rejection::kOutOfRange},
       {"stamped in the future", [&](auto& s) { s.stamp_s = kNowS + 10.0 * l.max_future_s; },
        Rejection::kFutureTimestamp},
-      {"stale", [&](auto& s) { s.stamp_s = kNowS - 2.0 * l.max_state_age_s; }, Rejection::kStaleTimestamp},
+      {"stale", [&](auto& s) { s.stamp_s = kNowS - 2.0 * l.max_state_age_s; },
+       Rejection::kStaleTimestamp},
   };
   ExpectRejected(good, cases);
 }
@@ -135,8 +147,10 @@ TEST(SampleValidation, CommandBadCasesRejectedByReason) {
       {"action 0", [](auto& s) { s.action = static_cast<ServoAction>(0); }, Rejection::kOutOfRange},
       {"unknown action", [](auto& s) { s.action = static_cast<ServoAction>(kMaxServoAction + 1); },
        Rejection::kOutOfRange},
-      {"standoff too large", [&](auto& s) { s.standoff_mm = l.max_standoff_mm + 1.0; }, Rejection::kOutOfRange},
-      {"negative standoff", [&](auto& s) { s.standoff_mm = l.min_standoff_mm - 1.0; }, Rejection::kOutOfRange},
+      {"standoff too large", [&](auto& s) { s.standoff_mm = l.max_standoff_mm + 1.0; },
+       Rejection::kOutOfRange},
+      {"negative standoff", [&](auto& s) { s.standoff_mm = l.min_standoff_mm - 1.0; },
+       Rejection::kOutOfRange},
       {"issued in the future", [&](auto& s) { s.stamp_s = kNowS + 10.0 * l.max_future_s; },
        Rejection::kFutureTimestamp},
       {"stale (an old ENABLE)", [&](auto& s) { s.stamp_s = kNowS - 2.0 * l.max_command_age_s; },
@@ -160,12 +174,13 @@ TEST(SampleValidation, EveryReasonHasAName) {
 TEST(SampleValidation, BadLimitsThrowNamingTheField) {
   ValidationLimits l;
   l.max_frequency_hz = 0.5 * l.min_frequency_hz;
-  echoservo::testing::ExpectContains(echoservo::testing::InvalidArgumentMessage([&] { l.Validate(); }),
-                                     "max_frequency_hz");
+  echoservo::testing::ExpectContains(
+      echoservo::testing::InvalidArgumentMessage([&] { l.Validate(); }), "max_frequency_hz");
   ValidationLimits nan_age;
   nan_age.max_target_age_s = kNaN;
   echoservo::testing::ExpectContains(
-      echoservo::testing::InvalidArgumentMessage([&] { SampleValidator v(nan_age); }), "max_target_age_s");
+      echoservo::testing::InvalidArgumentMessage([&] { SampleValidator v(nan_age); }),
+      "max_target_age_s");
 }
 
 }  // namespace

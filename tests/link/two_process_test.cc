@@ -47,7 +47,8 @@ class Peer {
   // The exit status, or -1 when it did not exit within `timeout_s` (then it is killed).
   int Wait(double timeout_s) {
     int status = 0;
-    const bool exited = Eventually([&] { return waitpid(pid_, &status, WNOHANG) == pid_; }, timeout_s);
+    const bool exited =
+        Eventually([&] { return waitpid(pid_, &status, WNOHANG) == pid_; }, timeout_s);
     if (!exited) {
       Kill();
       return -1;
@@ -118,7 +119,9 @@ TEST_P(TwoProcessTest, KilledPublisherReportedGone) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Transports, TwoProcessTest, ::testing::Values(true, false),
-                         [](const ::testing::TestParamInfo<bool>& p) { return p.param ? "Loopback" : "Default"; });
+                         [](const ::testing::TestParamInfo<bool>& p) {
+                           return p.param ? "Loopback" : "Default";
+                         });
 
 }  // namespace
 }  // namespace echoservo::link

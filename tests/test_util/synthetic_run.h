@@ -4,7 +4,7 @@
 // target plus a constant offset, so the true tip-to-target error is |tip_offset_mm| at every
 // instant. The EM tracker sees the tip in its own frame (image_to_em = em_to_image⁻¹) on its
 // own clock (t_em = t − em_clock_offset_s), starting before and ending after the volumes.
-// WriteSyntheticRun writes it as a RUN directory (hw/run_record.h). Units: mm, s.
+// WriteSyntheticRun writes it as a RUN directory (hw/io/run_record.h). Units: mm, s.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -16,8 +16,8 @@
 #include <set>
 #include <vector>
 
-#include "hw/em_log.h"
-#include "hw/run_record.h"
+#include "hw/io/em_log.h"
+#include "hw/io/run_record.h"
 
 namespace echoservo::testing {
 

@@ -2,25 +2,27 @@
 // (tracking/detector_accuracy.h) on simulated volumes against the simulator's ground truth,
 // in the same run as the RANSAC baseline and the exhaustive Radon reference. Small runs
 // (4 volumes per class) so the suite stays fast; `echoservo bench detect` runs more.
+#include "tracking/detector_accuracy.h"
+
 #include <gtest/gtest.h>
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "tracking/accuracy_volumes.h"
-#include "tracking/detector_accuracy.h"
 
 namespace echoservo::tracking {
 namespace {
 
-const std::filesystem::path kSpine = std::filesystem::path(ECHOSERVO_DATA_DIR) / "plus" / "SpinePhantomFreehandReconstructed.mha";
+const std::filesystem::path kSpine =
+    std::filesystem::path(ECHOSERVO_DATA_DIR) / "plus" / "SpinePhantomFreehandReconstructed.mha";
 
-DetectorAccuracyReport RunHarness(std::vector<std::string> classes, bool tracking, bool ransac, bool exhaustive,
-                                  int volumes = 4) {
+DetectorAccuracyReport RunHarness(std::vector<std::string> classes, bool tracking, bool ransac,
+                                  bool exhaustive, int volumes = 4) {
   DetectorAccuracyOptions o;
   o.volumes_per_class = volumes;
   o.classes = std::move(classes);
@@ -33,11 +35,13 @@ DetectorAccuracyReport RunHarness(std::vector<std::string> classes, bool trackin
 }
 
 void Print(const MethodStats& m) {
-  std::printf("%-10s detected %d/%d false %d | angle %.3f/%.3f deg, offset %.3f/%.3f, tip %.3f/%.3f, target %.3f/%.3f mm"
-              " (median/p95) | %.1f ms\n",
-              m.method.c_str(), m.detected, m.volumes, m.false_detections, m.angle_deg.median, m.angle_deg.p95,
-              m.offset_mm.median, m.offset_mm.p95, m.tip_mm.median, m.tip_mm.p95, m.target_mm.median, m.target_mm.p95,
-              m.mean_ms);
+  std::printf(
+      "%-10s detected %d/%d false %d | angle %.3f/%.3f deg, offset %.3f/%.3f, tip %.3f/%.3f, "
+      "target %.3f/%.3f mm"
+      " (median/p95) | %.1f ms\n",
+      m.method.c_str(), m.detected, m.volumes, m.false_detections, m.angle_deg.median,
+      m.angle_deg.p95, m.offset_mm.median, m.offset_mm.p95, m.tip_mm.median, m.tip_mm.p95,
+      m.target_mm.median, m.target_mm.p95, m.mean_detect_ms);
 }
 
 // The figures on simulated water-tank volumes: median axis error ≤ 0.5°, tip and
@@ -74,7 +78,9 @@ TEST_P(CatheterFree, FastDetectorReportsNoCatheter) {
 }
 
 INSTANTIATE_TEST_SUITE_P(DetectorAccuracy, CatheterFree,
-                         ::testing::Values("free_annulus", "free_tank", "free_clutter", "spine_phantom"), ClassName);
+                         ::testing::Values("free_annulus", "free_tank", "free_clutter",
+                                           "spine_phantom"),
+                         ClassName);
 
 class FastVersusRansac : public ::testing::TestWithParam<std::string> {};
 
@@ -102,8 +108,8 @@ TEST_P(FastVersusRansac, FastIsAtLeastAsAccurate) {
 }
 
 INSTANTIATE_TEST_SUITE_P(DetectorAccuracy, FastVersusRansac,
-                         ::testing::Values("water_tank", "no_reverberation", "speckle_clutter", "shadowing",
-                                           "wide_poses", "sound_speed"),
+                         ::testing::Values("water_tank", "no_reverberation", "speckle_clutter",
+                                           "shadowing", "wide_poses", "sound_speed"),
                          ClassName);
 
 // The fast detector finds the same line as the exhaustive full-resolution search. The
@@ -118,7 +124,8 @@ TEST(DetectorAccuracy, FastAgreesWithTheExhaustiveReference) {
   Print(*ex);
   EXPECT_EQ(ex->detected, 1);
   ASSERT_EQ(r.agreement_angle_deg.count, 1);
-  std::printf("agreement: angle %.3f deg, offset %.3f mm\n", r.agreement_angle_deg.median, r.agreement_offset_mm.median);
+  std::printf("agreement: angle %.3f deg, offset %.3f mm\n", r.agreement_angle_deg.median,
+              r.agreement_offset_mm.median);
   EXPECT_LT(r.agreement_angle_deg.median, 5.0);
   EXPECT_LT(r.agreement_offset_mm.median, 1.5);
   EXPECT_EQ(ex->tip_mm.count, 0);  // axis only
@@ -146,10 +153,12 @@ TEST(DetectorAccuracy, VolumesAreReproducibleAndSpineNeedsItsFile) {
   EXPECT_EQ(a.label, b.label);
   ASSERT_TRUE(a.truth && b.truth);
   EXPECT_EQ(a.truth->tip_mm, b.truth->tip_mm);
-  EXPECT_TRUE(std::equal(a.volume.voxels().begin(), a.volume.voxels().end(), b.volume.voxels().begin()));
+  EXPECT_TRUE(
+      std::equal(a.volume.voxels().begin(), a.volume.voxels().end(), b.volume.voxels().begin()));
   EXPECT_NE(MakeAccuracyVolume(cls, 2, 7, false, {}).label, a.label);
-  EXPECT_THROW(MakeAccuracyVolume(FindVolumeClass("spine_phantom"), 0, 1, false, "/no/such/file.mha"),
-               std::invalid_argument);
+  EXPECT_THROW(
+      MakeAccuracyVolume(FindVolumeClass("spine_phantom"), 0, 1, false, "/no/such/file.mha"),
+      std::invalid_argument);
 }
 
 }  // namespace

@@ -6,12 +6,13 @@
 #include <cmath>
 #include <numbers>
 
+#include "tests/test_util/constants.h"
 #include "tests/test_util/expect_error.h"
 
 namespace echoservo::tracking {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using testing::kDeg;
 
 // A catheter seen by beams from the probe apex at the image origin (image_to_probe =
 // identity): only the near wall echoes, as a Gaussian blob of σ 0.3 mm at the point of the
@@ -38,7 +39,8 @@ imaging::Volume Render(const Scene& sc) {
     for (int k = static_cast<int>(c.z()) - 3; k <= static_cast<int>(c.z()) + 4; ++k)
       for (int j = static_cast<int>(c.y()) - 3; j <= static_cast<int>(c.y()) + 4; ++j)
         for (int i = static_cast<int>(c.x()) - 3; i <= static_cast<int>(c.x()) + 4; ++i) {
-          if (i < 0 || j < 0 || k < 0 || i >= g.dims.x() || j >= g.dims.y() || k >= g.dims.z()) continue;
+          if (i < 0 || j < 0 || k < 0 || i >= g.dims.x() || j >= g.dims.y() || k >= g.dims.z())
+            continue;
           const double d2 = (v.IndexToPhysical(Eigen::Vector3d(i, j, k)) - e).squaredNorm();
           const double val = 10 + 240 * std::exp(-d2 / (2 * 0.3 * 0.3));
           v.at(i, j, k) = static_cast<std::uint8_t>(std::max<double>(v.at(i, j, k), val));
@@ -86,13 +88,15 @@ TEST(EchoAxisFit, NoEchoesNearTheLineGiveNothing) {
   imaging::VolumeGeometry g;
   g.dims = Eigen::Vector3i(20, 20, 20);
   const auto v = imaging::Volume::Create(g, 5);
-  EXPECT_FALSE(FitEchoAxis(v, Line3{Eigen::Vector3d(10, 10, 10), Eigen::Vector3d::UnitX()}, 5.0, {}).has_value());
+  EXPECT_FALSE(FitEchoAxis(v, Line3{Eigen::Vector3d(10, 10, 10), Eigen::Vector3d::UnitX()}, 5.0, {})
+                   .has_value());
 }
 
 TEST(EchoAxisFit, OptionsAreValidated) {
   EchoAxisFitOptions o;
   o.wire_diameter_mm = 3.0;  // thicker than the sheath
-  testing::ExpectContains(testing::InvalidArgumentMessage([&] { o.Validate(); }), "wire_diameter_mm");
+  testing::ExpectContains(testing::InvalidArgumentMessage([&] { o.Validate(); }),
+                          "wire_diameter_mm");
   o = {};
   o.fit_radius_mm = -1;
   testing::ExpectContains(testing::InvalidArgumentMessage([&] { o.Validate(); }), "fit_radius_mm");

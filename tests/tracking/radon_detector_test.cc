@@ -1,5 +1,7 @@
 // Radon catheter-axis detector on simulated volumes (SimulatedScanner ground truth), on a
 // real catheter-free volume, and on bad input.
+#include "tracking/radon_detector.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -14,7 +16,8 @@
 #include "imaging/io/volume_io.h"
 #include "imaging/sim/catheter_scene.h"
 #include "imaging/sim/simulated_scanner.h"
-#include "tracking/radon_detector.h"
+#include "tests/test_util/constants.h"
+#include "tests/test_util/synthetic_volume.h"
 
 namespace echoservo::tracking {
 namespace {
@@ -22,7 +25,7 @@ namespace {
 using imaging::sim::SimulatedScanner;
 using imaging::sim::SimulatedScannerOptions;
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using testing::kDeg;
 
 struct Case {
   double yaw_deg, tilt_deg, depth_mm, lateral_mm, sound_speed, advance_mm;
@@ -30,7 +33,8 @@ struct Case {
 
 SimulatedScannerOptions Options(const Case& c) {
   SimulatedScannerOptions o;
-  imaging::sim::PlaceCatheterScene({c.yaw_deg, c.tilt_deg, c.depth_mm, c.lateral_mm, c.advance_mm}, o);
+  imaging::sim::PlaceCatheterScene({c.yaw_deg, c.tilt_deg, c.depth_mm, c.lateral_mm, c.advance_mm},
+                                   o);
   o.medium_sound_speed_m_s = c.sound_speed;
   o.reverberation = true;
   return o;
@@ -56,7 +60,7 @@ double Median(std::vector<double> v) {
 
 TEST(RadonDetector, FindsTheSimulatedCatheterAxisTipAndTarget) {
   const std::vector<Case> cases = {
-      {0, 10, 60, 0, 1482, 0},  {0, 10, 60, 0, 1540, 4},  {30, 5, 55, -5, 1482, 0},
+      {0, 10, 60, 0, 1482, 0},   {0, 10, 60, 0, 1540, 4},   {30, 5, 55, -5, 1482, 0},
       {-20, 15, 70, 5, 1540, 2}, {180, 10, 50, 0, 1482, 0}, {15, 0, 65, 0, 1600, 0},
   };
   RadonDetector detector;
@@ -67,10 +71,12 @@ TEST(RadonDetector, FindsTheSimulatedCatheterAxisTipAndTarget) {
     ASSERT_TRUE(frame && frame->truth && frame->truth->catheter_visible);
     const auto d = detector.Detect(frame->volume);
     const Errors e = Measure(d, *frame->truth);
-    std::printf("yaw %5.0f tilt %3.0f depth %3.0f c %4.0f: found %d conf %.2f z %.1f len %.1f tube %.2f | angle %.3f deg, "
-                "offset %.3f mm, tip %.3f mm, target %.3f mm\n",
-                c.yaw_deg, c.tilt_deg, c.depth_mm, c.sound_speed, d.found, d.confidence, d.peak_z,
-                d.line_length_mm, d.tubularity, e.angle_deg, e.axis_offset_mm, e.tip_mm, e.target_mm);
+    std::printf(
+        "yaw %5.0f tilt %3.0f depth %3.0f c %4.0f: found %d conf %.2f z %.1f len %.1f tube %.2f | "
+        "angle %.3f deg, "
+        "offset %.3f mm, tip %.3f mm, target %.3f mm\n",
+        c.yaw_deg, c.tilt_deg, c.depth_mm, c.sound_speed, d.found, d.confidence, d.peak_z,
+        d.line_length_mm, d.tubularity, e.angle_deg, e.axis_offset_mm, e.tip_mm, e.target_mm);
     EXPECT_TRUE(d.found);
     ang.push_back(e.angle_deg);
     off.push_back(e.axis_offset_mm);
@@ -104,11 +110,11 @@ TEST(RadonDetector, TracksAcrossFramesNearThePreviousAxis) {
     const auto d = detector.Track(frame->volume);
     ASSERT_TRUE(d.found) << advance;
     const Errors e = Measure(d, *frame->truth);
-    std::printf("track advance %.0f: tracked %d conf %.2f angle %.3f tip %.3f\n", advance, d.tracked,
-                d.confidence, e.angle_deg, e.tip_mm);
+    std::printf("track advance %.0f: tracked %d conf %.2f angle %.3f tip %.3f\n", advance,
+                d.tracked, d.confidence, e.angle_deg, e.tip_mm);
     EXPECT_EQ(d.tracked, advance > 0.0);
-    EXPECT_LE(e.angle_deg, 0.5);  // measured 0.04–0.29°
-    EXPECT_LE(e.tip_mm, 0.5);     // measured 0.05–0.13 mm
+    EXPECT_LE(e.angle_deg, 0.5);                                         // measured 0.04–0.29°
+    EXPECT_LE(e.tip_mm, 0.5);                                            // measured 0.05–0.13 mm
     EXPECT_GT(d.axis.direction.dot(frame->truth->axis_direction), 0.0);  // points to the tip
   }
 }
@@ -143,8 +149,9 @@ TEST(RadonDetector, TipEdgeOnFirstEchoesIsUnbiasedUnderReverberation) {
     ++n;
   }
   const double mean_first = sum_first / n, mean_plain = sum_plain / n;
-  std::printf("signed tip error along the axis, mean of %d: first echoes %+.3f mm, all echoes %+.3f mm\n", n,
-              mean_first, mean_plain);
+  std::printf(
+      "signed tip error along the axis, mean of %d: first echoes %+.3f mm, all echoes %+.3f mm\n",
+      n, mean_first, mean_plain);
   EXPECT_LE(std::abs(mean_first), 0.12);
   EXPECT_GE(mean_plain - mean_first, 0.15);  // the comet tails' share
 }
@@ -155,12 +162,7 @@ TEST(RadonDetector, RejectsABadTipFirstEchoLookBack) {
   EXPECT_THROW(RadonDetector{o}, std::invalid_argument);
 }
 
-imaging::Volume Synthetic(int n, double spacing, std::uint8_t fill) {
-  imaging::VolumeGeometry g;
-  g.dims = Eigen::Vector3i(n, n, n);
-  g.spacing_mm = Eigen::Vector3d::Constant(spacing);
-  return imaging::Volume::Create(g, fill);
-}
+using testing::Synthetic;
 
 TEST(RadonDetector, BadInputIsNeverAFabricatedAxis) {
   const RadonDetector detector;
@@ -239,8 +241,8 @@ TEST(RadonDetector, CatheterFreeVolumesAreNotFound) {
     SimulatedScanner scanner(o);
     const auto frame = scanner.Next();
     const auto d = RadonDetector().Detect(frame->volume);
-    std::printf("catheter-free (annulus %d): found %d conf %.2f z %.1f len %.1f tube %.2f\n", annulus, d.found,
-                d.confidence, d.peak_z, d.line_length_mm, d.tubularity);
+    std::printf("catheter-free (annulus %d): found %d conf %.2f z %.1f len %.1f tube %.2f\n",
+                annulus, d.found, d.confidence, d.peak_z, d.line_length_mm, d.tubularity);
     EXPECT_FALSE(d.found);
     // The tank floor is a bright plane: its best Radon line lies within it, which only the
     // tube test rejects (tubularity measured 0.00; a catheter measures ≥ 0.99).
@@ -249,7 +251,8 @@ TEST(RadonDetector, CatheterFreeVolumesAreNotFound) {
 }
 
 TEST(RadonDetector, RealSpinePhantomVolumeIsNotFound) {
-  const auto path = std::filesystem::path(ECHOSERVO_DATA_DIR) / "plus" / "SpinePhantomFreehandReconstructed.mha";
+  const auto path =
+      std::filesystem::path(ECHOSERVO_DATA_DIR) / "plus" / "SpinePhantomFreehandReconstructed.mha";
   const auto v = imaging::ReadVolume(path);
   CatheterDetection d;
   try {
@@ -257,7 +260,8 @@ TEST(RadonDetector, RealSpinePhantomVolumeIsNotFound) {
   } catch (const std::invalid_argument&) {
     return;
   }
-  std::printf("spine: found %d conf %.2f z %.1f len %.1f tube %.2f\n", d.found, d.confidence, d.peak_z, d.line_length_mm, d.tubularity);
+  std::printf("spine: found %d conf %.2f z %.1f len %.1f tube %.2f\n", d.found, d.confidence,
+              d.peak_z, d.line_length_mm, d.tubularity);
   EXPECT_FALSE(d.found);
 }
 

@@ -32,7 +32,8 @@ imaging::Volume TestVolume(std::uint32_t seed) {
       for (int i = 0; i < g.dims.x(); ++i) {
         const Eigen::Vector3d p = v.IndexToPhysical(Eigen::Vector3d(i, j, k));
         const double s = line.Parameter(p);
-        if (s >= 0 && s <= (p1 - p0).norm() && PointToLineDistance(line, p) < 0.7) v.at(i, j, k) = 240;
+        if (s >= 0 && s <= (p1 - p0).norm() && PointToLineDistance(line, p) < 0.7)
+          v.at(i, j, k) = 240;
       }
   return v;
 }
@@ -88,7 +89,8 @@ TEST(RadonTransform, MedianNonZeroVoxelIsTheMedianOfTheNonZeroVoxels) {
 
 TEST(RadonTransform, LevelOfAGridEqualsTheLevelOfTheVolume) {
   const auto v = TestVolume(3);
-  for (int f : {1, 2, 4}) ExpectSameCells(MakeRadonLevel(v, f, 1.0), MakeRadonLevel(v, MaxPool(v, f), 1.0));
+  for (int f : {1, 2, 4})
+    ExpectSameCells(MakeRadonLevel(v, f, 1.0), MakeRadonLevel(v, MaxPool(v, f), 1.0));
 }
 
 TEST(RadonTransform, ContrastThresholdKeepsTheCellsClearlyAboveTheBackground) {
@@ -108,13 +110,16 @@ TEST(RadonTransform, ContrastThresholdKeepsTheCellsClearlyAboveTheBackground) {
 
 TEST(RadonTransform, RegionOfInterestLevelIsTheFullLevelNearTheLine) {
   const auto v = TestVolume(5);
-  const Line3 axis{v.IndexToPhysical(Eigen::Vector3d(20, 18, 15)), Eigen::Vector3d(1, 0.4, -0.3).normalized()};
+  const Line3 axis{v.IndexToPhysical(Eigen::Vector3d(20, 18, 15)),
+                   Eigen::Vector3d(1, 0.4, -0.3).normalized()};
   const RadonWindow roi{axis, 4.0};
   for (int f : {2, 4}) {
     const PooledGrid full = MaxPool(v, f);
     const LevelThresholds thresholds = GridThresholds(full, 0.125);
     RadonLevel expected = MakeRadonLevel(v, full, 1.0, nullptr, thresholds);
-    std::erase_if(expected.cells, [&](const RadonCell& c) { return PointToLineDistance(axis, c.p_mm) > roi.radius_mm; });
+    std::erase_if(expected.cells, [&](const RadonCell& c) {
+      return PointToLineDistance(axis, c.p_mm) > roi.radius_mm;
+    });
     ASSERT_FALSE(expected.cells.empty());
     ExpectSameCells(expected, MakeRadonLevel(v, MaxPool(v, f, roi), 1.0, &roi, thresholds));
   }
@@ -147,7 +152,8 @@ TEST(RadonTransform, CoarseToFineSearchFindsTheBestDirectionOfTheSet) {
   EXPECT_EQ(c2f.direction, all.direction);
   // The statistics come from the first stage: every other direction of the set.
   ASSERT_EQ(c2f.scores.size(), dirs.size() / 2);
-  for (std::size_t i = 0; i < c2f.scores.size(); ++i) EXPECT_EQ(c2f.scores[i], all.scores[2 * i]) << i;
+  for (std::size_t i = 0; i < c2f.scores.size(); ++i)
+    EXPECT_EQ(c2f.scores[i], all.scores[2 * i]) << i;
 }
 
 }  // namespace

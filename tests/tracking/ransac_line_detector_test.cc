@@ -1,5 +1,7 @@
 // RANSAC line detector (the peer baseline): a synthetic bright line in noise, surface
 // removal, target, determinism, and bad input that must give "not found".
+#include "tracking/ransac_line_detector.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -8,19 +10,15 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "tracking/ransac_line_detector.h"
+#include "tests/test_util/constants.h"
+#include "tests/test_util/synthetic_volume.h"
 
 namespace echoservo::tracking {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
+using testing::kDeg;
 
-imaging::Volume Synthetic(int n, double spacing, std::uint8_t fill) {
-  imaging::VolumeGeometry g;
-  g.dims = Eigen::Vector3i(n, n, n);
-  g.spacing_mm = Eigen::Vector3d::Constant(spacing);
-  return imaging::Volume::Create(g, fill);
-}
+using testing::Synthetic;
 
 void AddNoise(imaging::Volume& v, std::uint32_t seed, int lo, int span) {
   std::uint32_t state = seed;
@@ -32,8 +30,8 @@ void AddNoise(imaging::Volume& v, std::uint32_t seed, int lo, int span) {
 
 // A bright Gaussian-profile line from p0 (where it enters, at the x = 0 face) to p0 + tip_s·dir;
 // `saturated`: flat 250 within 0.8 mm of the axis instead (a saturated catheter echo).
-void AddLine(imaging::Volume& v, const Eigen::Vector3d& p0, const Eigen::Vector3d& dir, double tip_s,
-             bool saturated = false) {
+void AddLine(imaging::Volume& v, const Eigen::Vector3d& p0, const Eigen::Vector3d& dir,
+             double tip_s, bool saturated = false) {
   const int n = v.dims().x();
   for (int k = 0; k < n; ++k)
     for (int j = 0; j < n; ++j)
@@ -42,7 +40,8 @@ void AddLine(imaging::Volume& v, const Eigen::Vector3d& p0, const Eigen::Vector3
         const double s = (p - p0).dot(dir);
         const double r = (p - p0 - s * dir).norm();
         if (s <= tip_s && r < 1.5) {
-          const double val = saturated ? (r < 0.8 ? 250.0 : 0.0) : 250.0 * std::exp(-r * r / (2 * 0.4 * 0.4));
+          const double val =
+              saturated ? (r < 0.8 ? 250.0 : 0.0) : 250.0 * std::exp(-r * r / (2 * 0.4 * 0.4));
           v.at(i, j, k) = static_cast<std::uint8_t>(std::max<double>(v.at(i, j, k), val));
         }
       }

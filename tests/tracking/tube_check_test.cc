@@ -22,7 +22,8 @@ imaging::Volume Make(const std::function<double(const Eigen::Vector3d&)>& value)
   for (int k = 0; k < 81; ++k)
     for (int j = 0; j < 81; ++j)
       for (int i = 0; i < 81; ++i)
-        v.at(i, j, k) = static_cast<std::uint8_t>(std::clamp(value(v.IndexToPhysical(Eigen::Vector3d(i, j, k))), 0.0, 255.0));
+        v.at(i, j, k) = static_cast<std::uint8_t>(
+            std::clamp(value(v.IndexToPhysical(Eigen::Vector3d(i, j, k))), 0.0, 255.0));
   return v;
 }
 
@@ -50,7 +51,8 @@ TEST(Tubularity, ACometTailBehindTheCatheterIsIgnored) {
 
 TEST(Tubularity, ALineWithinAPlaneIsNotATube) {
   // A bright floor (1 mm thick, ⟂ the beam) containing the line.
-  const auto v = Make([](const Eigen::Vector3d& p) { return std::abs(p.z() - 60) < 0.5 ? 250.0 : 20.0; });
+  const auto v =
+      Make([](const Eigen::Vector3d& p) { return std::abs(p.z() - 60) < 0.5 ? 250.0 : 20.0; });
   EXPECT_LT(Tubularity(v, kAxis, -15, 15, 50, {}), 0.1);
 }
 
@@ -69,7 +71,9 @@ TEST(Tubularity, ACatheterBesideTissueSpeckleIsStillATube) {
 
 TEST(Tubularity, OutsideTheVolumeIsZeroAndOptionsAreValidated) {
   const auto v = Make(Tube);
-  EXPECT_EQ(Tubularity(v, Line3{Eigen::Vector3d(0, 0, 500), Eigen::Vector3d::UnitX()}, -5, 5, 50, {}), 0.0);
+  EXPECT_EQ(
+      Tubularity(v, Line3{Eigen::Vector3d(0, 0, 500), Eigen::Vector3d::UnitX()}, -5, 5, 50, {}),
+      0.0);
   TubeCheckOptions o;
   o.ring_outer_mm = 2.0;  // inside the inner radius
   testing::ExpectContains(testing::InvalidArgumentMessage([&] { o.Validate(); }), "ring_outer_mm");

@@ -1,0 +1,345 @@
+// `echoservo lab compare|diagnose|report`: the model lab.
+#include "apps/commands/lab_command.h"
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+
+#include "apps/commands/lab_motion.h"
+#include "apps/output.h"
+#include "hw/effect_registry.h"
+#include "lab/diagnosis.h"
+#include "lab/lab_report.h"
+#include "lab/model_fit.h"
+
+namespace echoservo::apps {
+namespace {
+
+struct LabFlags {
+  std::string dataset;
+  std::string model = "seed";
+  bool skip_bad = false;
+  bool json = false;
+  int stride = 4;
+  std::string residuals_dir;
+  std::string column;  // motion traces only
+};
+
+// A regular file is a target-motion trace (the motion lab); a folder a catheter dataset.
+bool IsMotionTrace(const LabFlags& f, MotionLabFlags& m) {
+  if (!std::filesystem::is_regular_file(f.dataset)) return false;
+  m = {f.dataset, f.model, f.column, f.json};
+  return true;
+}
+
+// Writes each trial with its model predictions as extra columns (trial format).
+void WriteResiduals(const std::string& dir, const lab::LabDataset& ds, const lab::FitResult& r) {
+  for (std::size_t k = 0; k < r.trials.size(); ++k) {
+    hw::Trial t = ds.trials[k].trial;
+    t.extra_names = {"tip_model", "force_model", "velocity"};
+    t.extra_columns = {r.trials[k].prediction.tip_mm, r.trials[k].prediction.force_n,
+                       ds.trials[k].velocity_mm_s};
+    hw::WriteTrial(dir, t);
+  }
+}
+
+lab::LabDataset Load(const LabFlags& f) {
+  lab::LabDatasetOptions o;
+  o.skip_bad = f.skip_bad;
+  o.stride = f.stride;
+  lab::LabDataset ds = lab::LoadLabDataset(f.dataset, o);
+  for (const std::string& s : ds.skipped) std::cerr << "echoservo: skipped " << s << "\n";
+  return ds;
+}
+
+// Progress lines go to stderr, and only once the command has run for more than a second.
+lab::FitOptions Options() {
+  lab::FitOptions o;
+  const auto start = std::chrono::steady_clock::now();
+  o.progress = [start](const std::string& line) {
+    if (std::chrono::steady_clock::now() - start > std::chrono::seconds(1)) {
+      std::cerr << "echoservo: " << line << "\n";
+    }
+  };
+  return o;
+}
+
+nlohmann::json NullIfNan(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
+std::string PercentOrDash(double fraction) {
+  if (!std::isfinite(fraction)) return "-";
+  const double pct = std::round(100.0 * fraction);
+  return Fixed(pct == 0.0 ? 0.0 : pct, 0) + "%";  // never "-0%"
+}
+
+nlohmann::json ParamsJson(const lab::FitResult& r) {
+  nlohmann::json p = nlohmann::json::object();
+  for (const auto& e : r.estimates) {
+    p[e.name] = {{"value", e.value},
+                 {"sd", std::isfinite(e.sd) ? nlohmann::json(e.sd) : nlohmann::json(nullptr)},
+                 {"unit", e.unit}};
+  }
+  return p;
+}
+
+nlohmann::json GroupsJson(const std::vector<lab::GroupStat>& groups) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& g : groups) {
+    out.push_back({{"group", g.label},
+                   {"samples", g.samples},
+                   {"tip_rms_mm", g.tip_rms_mm},
+                   {"force_rms_n", g.force_rms_n},
+                   {"sample_share", g.sample_share},
+                   {"tip_share", g.tip_share},
+                   {"force_share", g.force_share}});
+  }
+  return out;
+}
+
+nlohmann::json BreakdownJson(const lab::Breakdown& b) {
+  return {{"phase", GroupsJson(b.phase)},       {"speed", GroupsJson(b.speed)},
+          {"gap", GroupsJson(b.gap)},           {"bend", GroupsJson(b.bend)},
+          {"tip_load", GroupsJson(b.tip_load)}, {"trial", GroupsJson(b.trial)}};
+}
+
+void PrintGroups(const char* title, const std::vector<lab::GroupStat>& groups) {
+  std::cout << "\nby " << title << ":\n";
+  Table t(
+      {"group", "samples", "tip_rms_mm", "share_of_tip_sq", "force_rms_n", "share_of_force_sq"});
+  for (const auto& g : groups) {
+    t.AddRow({g.label, std::to_string(g.samples), Fixed(g.tip_rms_mm, 4),
+              Fixed(100 * g.tip_share, 1) + "%", Fixed(g.force_rms_n, 4),
+              Fixed(100 * g.force_share, 1) + "%"});
+  }
+  t.Print(std::cout);
+}
+
+void RunCompare(const LabFlags& f) {
+  if (MotionLabFlags m; IsMotionTrace(f, m)) return RunMotionCompare(m);
+  const lab::LabDataset ds = Load(f);
+  const auto effects = hw::ParseModelSpec(f.model, hw::EffectRegistry::WithBuiltinEffects());
+  const lab::FitResult r = lab::FitModel(effects, ds, Options());
+  if (!f.residuals_dir.empty()) WriteResiduals(f.residuals_dir, ds, r);
+  const lab::Breakdown breakdown = lab::ComputeBreakdown(ds, r);
+  if (f.json) {
+    nlohmann::json trials = nlohmann::json::array();
+    for (const auto& t : r.trials) {
+      trials.push_back({{"trial", t.name},
+                        {"rms_mm", t.stats.tip_rms_mm},
+                        {"mae_mm", t.stats.tip_mae_mm},
+                        {"max_mm", t.stats.tip_max_mm},
+                        {"force_rms_n", t.stats.force_rms_n},
+                        {"tip_offset_mm", t.nuisance.tip_offset_mm},
+                        {"contact", t.nuisance.contact}});
+    }
+    std::cout << nlohmann::json{{"model", hw::FormatModelSpec(effects)},
+                                {"rms_mm", r.overall.tip_rms_mm},
+                                {"mae_mm", r.overall.tip_mae_mm},
+                                {"max_mm", r.overall.tip_max_mm},
+                                {"force_rms_n", r.overall.force_rms_n},
+                                {"noise",
+                                 {{"tip_mm", ds.noise.tip_mm}, {"force_n", ds.noise.force_n}}},
+                                {"params", ParamsJson(r)},
+                                {"trials", trials},
+                                {"breakdown", BreakdownJson(breakdown)},
+                                {"skipped", ds.skipped},
+                                {"fit_seconds", r.seconds}}
+                     .dump(2)
+              << "\n";
+    return;
+  }
+  std::cout << "model " << hw::FormatModelSpec(effects) << ": tip RMS "
+            << Fixed(r.overall.tip_rms_mm, 4) << " mm, MAE " << Fixed(r.overall.tip_mae_mm, 4)
+            << " mm, max " << Fixed(r.overall.tip_max_mm, 3) << " mm; force RMS "
+            << Fixed(r.overall.force_rms_n, 4) << " N (noise: tip " << Fixed(ds.noise.tip_mm, 4)
+            << " mm, force " << Fixed(ds.noise.force_n, 4) << " N)\n\n";
+  Table p({"parameter", "value", "sd", "unit"});
+  for (const auto& e : r.estimates)
+    p.AddRow({e.name, Fixed(e.value, 5), std::isfinite(e.sd) ? Fixed(e.sd, 5) : "-", e.unit});
+  p.Print(std::cout);
+  std::cout << "\n";
+  Table t({"trial", "tip_rms_mm", "tip_mae_mm", "tip_max_mm", "force_rms_n"});
+  for (const auto& tr : r.trials) {
+    t.AddRow({tr.name, Fixed(tr.stats.tip_rms_mm, 4), Fixed(tr.stats.tip_mae_mm, 4),
+              Fixed(tr.stats.tip_max_mm, 3), Fixed(tr.stats.force_rms_n, 4)});
+  }
+  t.Print(std::cout);
+  std::cout << "\nWhere the model fails (share of each channel's squared residual):";
+  PrintGroups("phase of motion", breakdown.phase);
+  PrintGroups("base speed", breakdown.speed);
+  PrintGroups("gap", breakdown.gap);
+  PrintGroups("total bend angle", breakdown.bend);
+  PrintGroups("tip load", breakdown.tip_load);
+}
+
+nlohmann::json DiagnosisJson(const lab::Diagnosis& d) {
+  nlohmann::json candidates = nlohmann::json::array();
+  for (const auto& c : d.candidates) {
+    candidates.push_back({{"effect", c.effect},
+                          {"rms_mm", c.fit.overall.tip_rms_mm},
+                          {"mae_mm", c.fit.overall.tip_mae_mm},
+                          {"force_rms_n", c.fit.overall.force_rms_n},
+                          {"cv_tip_mse_noise", c.cv.tip_mse},
+                          {"cv_force_mse_noise", c.cv.force_mse},
+                          {"tip_explained", NullIfNan(c.tip_explained)},
+                          {"force_explained", NullIfNan(c.force_explained)},
+                          {"score", c.score},
+                          {"significant", c.significant},
+                          {"channel", c.channel},
+                          {"params", ParamsJson(c.fit)},
+                          {"evidence", c.evidence}});
+  }
+  return {{"model", hw::FormatModelSpec(d.model)},
+          {"rms_mm", d.base.overall.tip_rms_mm},
+          {"mae_mm", d.base.overall.tip_mae_mm},
+          {"force_rms_n", d.base.overall.force_rms_n},
+          {"cv_tip_mse_noise", d.base_cv.tip_mse},
+          {"cv_force_mse_noise", d.base_cv.force_mse},
+          {"params", ParamsJson(d.base)},
+          {"adequate", d.adequate},
+          {"verdict", d.verdict},
+          {"candidates", candidates}};
+}
+
+void RunDiagnose(const LabFlags& f) {
+  if (MotionLabFlags m; IsMotionTrace(f, m)) return RunMotionDiagnose(m);
+  const lab::LabDataset ds = Load(f);
+  const auto effects = hw::ParseModelSpec(f.model, hw::EffectRegistry::WithBuiltinEffects());
+  lab::DiagnoseOptions o;
+  o.fit = Options();
+  const lab::Diagnosis d = lab::Diagnose(effects, ds, o);
+  if (f.json) {
+    nlohmann::json j = DiagnosisJson(d);
+    j["noise"] = {{"tip_mm", ds.noise.tip_mm}, {"force_n", ds.noise.force_n}};
+    j["skipped"] = ds.skipped;
+    std::cout << j.dump(2) << "\n";
+    return;
+  }
+  std::cout << "model " << hw::FormatModelSpec(effects) << ": tip RMS "
+            << Fixed(d.base.overall.tip_rms_mm, 4) << " mm, force RMS "
+            << Fixed(d.base.overall.force_rms_n, 4) << " N (noise: tip "
+            << Fixed(ds.noise.tip_mm, 4) << " mm, force " << Fixed(ds.noise.force_n, 4)
+            << " N)\n\n";
+  Table t({"rank", "candidate", "tip_rms_mm", "force_rms_n", "held-out tip excess removed",
+           "force excess removed", "significant"});
+  int rank = 1;
+  for (const auto& c : d.candidates) {
+    t.AddRow({std::to_string(rank++), "+" + c.effect, Fixed(c.fit.overall.tip_rms_mm, 4),
+              Fixed(c.fit.overall.force_rms_n, 4), PercentOrDash(c.tip_explained),
+              PercentOrDash(c.force_explained), c.significant ? "yes" : "no"});
+  }
+  t.Print(std::cout);
+  std::cout << "\n" << (d.adequate ? "ADEQUATE" : "MISSING") << ": " << d.verdict << "\n";
+  if (!d.adequate) {
+    std::cout << "\nnext: echoservo lab compare " << f.dataset << " --model "
+              << hw::FormatModelSpec(effects) << "+" << d.candidates.front().effect << "\n";
+  }
+}
+
+void AddCommon(CLI::App* cmd, LabFlags& f) {
+  cmd->add_option("DATASET", f.dataset,
+                  "Folder of trials (CSV + JSON pairs, docs/trial_format.md), or a motion-trace "
+                  "CSV (docs/predictor.md)")
+      ->required();
+  cmd->add_option(
+      "--model", f.model,
+      "Model SPEC, e.g. seed or seed+capstan_friction; for a motion trace heartbeat:N[+respiration]"
+      "[+rate_drift] (default heartbeat:2)");
+  cmd->add_option("--column", f.column,
+                  "Motion traces: the position column (default: the first after 't')");
+  cmd->add_flag("--skip-bad", f.skip_bad,
+                "Skip invalid trials (each is listed) instead of failing");
+  cmd->add_option("--stride", f.stride,
+                  "Use every N-th sample as a residual (default 4: 250 Hz from 1 kHz)");
+  cmd->add_flag("--json", f.json, "Print JSON");
+}
+
+// ---- `lab report`: the error ladder, diagnosis and plots as one self-contained HTML page.
+
+struct LabReportFlags {
+  LabFlags common;
+  std::string out;
+  int max_rounds = 4;
+  int plot_trials = 4;
+};
+
+void RunLabReport(const LabReportFlags& f) {
+  const lab::LabDataset ds = Load(f.common);
+  const auto effects = hw::ParseModelSpec(f.common.model, hw::EffectRegistry::WithBuiltinEffects());
+  lab::DiagnoseOptions o;
+  o.fit = Options();
+  const std::vector<lab::LadderStep> ladder = lab::ErrorLadder(effects, ds, o, f.max_rounds);
+  lab::LabReportOptions ro;
+  ro.dataset_path = f.common.dataset;
+  ro.stride = f.common.stride;
+  ro.max_rounds = f.max_rounds;
+  ro.plot_trials = static_cast<std::size_t>(f.plot_trials);
+  o.fit.progress("report: writing " + f.out);
+  WriteFileAtomically(f.out, lab::RenderLabReport(ds, ladder, ro));
+  std::vector<std::string> models;
+  for (const auto& step : ladder) models.push_back(hw::FormatModelSpec(step.model));
+  const bool adequate = ladder.back().diagnosis.adequate;
+  if (f.common.json) {
+    std::cout << nlohmann::json{{"report", f.out},
+                                {"ladder", models},
+                                {"final_model", models.back()},
+                                {"adequate", adequate},
+                                {"verdict", ladder.back().diagnosis.verdict}}
+                     .dump(2)
+              << "\n";
+    return;
+  }
+  std::cout << "wrote " << f.out << ": ladder";
+  for (std::size_t i = 0; i < models.size(); ++i) std::cout << (i == 0 ? " " : " -> ") << models[i];
+  std::cout << " (" << (adequate ? "adequate" : "not adequate") << ")\n";
+}
+
+void AddReportCommand(CLI::App* lab) {
+  auto flags = std::make_shared<LabReportFlags>();
+  auto* report = lab->add_subcommand(
+      "report", "Error ladder, diagnosis, parameters and plots as one self-contained HTML page");
+  AddCommon(report, flags->common);
+  report->add_option("--out", flags->out, "HTML file to write")->required();
+  report
+      ->add_option("--max-rounds", flags->max_rounds,
+                   "Most effects the error ladder adds (default 4)")
+      ->check(CLI::Range(0, 20));
+  report
+      ->add_option(
+          "--plot-trials", flags->plot_trials,
+          "Trials plotted: those with the largest tip residual under the model (default 4)")
+      ->check(CLI::Range(0, 100));
+  report->callback([flags] { RunLabReport(*flags); });
+}
+
+}  // namespace
+
+void AddLabCommands(CLI::App& app) {
+  auto* lab = app.add_subcommand(
+      "lab", "The model lab: compare a catheter model with measurements, diagnose what it misses");
+  lab->require_subcommand(1);
+  auto flags = std::make_shared<LabFlags>();
+  auto* compare = lab->add_subcommand(
+      "compare", "Fit a model to all trials; errors, parameters, where it fails");
+  AddCommon(compare, *flags);
+  compare->add_option(
+      "--residuals", flags->residuals_dir,
+      "Write every trial with the model's tip and force as extra columns into this folder");
+  compare->callback([flags] { RunCompare(*flags); });
+  auto dflags = std::make_shared<LabFlags>();
+  auto* diagnose = lab->add_subcommand(
+      "diagnose", "Refit the model plus each missing catalog effect; rank them on held-out trials");
+  AddCommon(diagnose, *dflags);
+  diagnose->callback([dflags] { RunDiagnose(*dflags); });
+  AddReportCommand(lab);
+}
+
+}  // namespace echoservo::apps

@@ -1,0 +1,75 @@
+#include "lab/model_prediction.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace echoservo::lab {
+namespace {
+
+// Where the guidewire may be stuck (LabTrial::may_stick) static friction takes whatever
+// value balances the drive, anywhere within ±breakaway, and a kinematic model cannot say
+// which: the prediction is the measured force clamped to that band, so only a force
+// beyond breakaway counts as model error. "May" stick: the base may as well be sliding
+// at the estimated speed (a trial's first and last samples, a slow pass), where kinetic
+// friction can exceed breakaway (viscous friction), so the band is ±max(breakaway,
+// friction magnitude at the estimated speed).
+
+}  // namespace
+
+void PredictTrial(const hw::TransmissionModel& model, const LabTrial& lt,
+                  const TrialNuisance& nuisance, Prediction& out) {
+  const hw::Trial& tr = lt.trial;
+  const std::size_t n = tr.size();
+  out.tip_mm.resize(n);
+  out.force_n.resize(n);
+  std::vector<double>& tip = out.tip_mm;  // true tip first, sensor applied below
+
+  const double half = 0.5 * model.BacklashWidthMm();
+  double last_dt = -1.0;
+  double fraction = 1.0;
+  const double breakaway = model.FrictionLevelN();
+  for (std::size_t i = 0; i < n; ++i) {
+    const double v = lt.velocity_mm_s[i];
+    const double kinetic = model.FrictionMagnitudeN(std::abs(v));
+    const double band = std::max(breakaway, kinetic);
+    const double force =
+        lt.may_stick[i] != 0 ? std::clamp(tr.force_n[i], -band, band) : std::copysign(kinetic, v);
+    out.force_n[i] = force;
+    const double drive = model.DriveMm(tr.base_mm[i], force);
+    if (i == 0) {
+      tip[0] = drive + std::clamp(nuisance.contact, -1.0, 1.0) * half;
+    } else {
+      const double dt = tr.t_s[i] - tr.t_s[i - 1];
+      if (dt != last_dt) {  // uniformly sampled trials compute the exponential once
+        fraction = model.TraversalFraction(dt);
+        last_dt = dt;
+      }
+      tip[i] = model.StepTipWithFraction(tip[i - 1], drive, fraction);
+    }
+  }
+
+  // Tip sensor: delay (interpolated on the trial's own time grid), gain, offset. Walk
+  // backwards so each value is read before it is overwritten.
+  const double delay = model.SensorDelayS();
+  const double scale = model.SensorScale();
+  if (delay > 0.0) {
+    std::size_t j = n - 1;
+    for (std::size_t i = n; i-- > 0;) {
+      const double t = tr.t_s[i] - delay;
+      while (j > 0 && tr.t_s[j] > t) --j;
+      double value;
+      if (t <= tr.t_s[0]) {
+        value = tip[0];
+      } else {
+        const std::size_t k = std::min(j + 1, n - 1);
+        const double span = tr.t_s[k] - tr.t_s[j];
+        const double u = span > 0.0 ? (t - tr.t_s[j]) / span : 0.0;
+        value = tip[j] + u * (tip[k] - tip[j]);
+      }
+      tip[i] = value;  // j ≤ i, so later reads (smaller i) only touch indices ≤ i
+    }
+  }
+  for (double& x : tip) x = scale * x + nuisance.tip_offset_mm;
+}
+
+}  // namespace echoservo::lab

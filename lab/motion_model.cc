@@ -1,0 +1,395 @@
+#include "lab/motion_model.h"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <numeric>
+#include <stdexcept>
+
+#include "estimation/harmonic_fit.h"
+
+namespace echoservo::lab {
+namespace {
+
+constexpr double kTwoPi = 2.0 * std::numbers::pi;
+constexpr int kMaxHarmonics = 12;
+constexpr double kMinRespirationHz = 0.08;
+constexpr double kMaxRespirationHz = 0.7;
+
+// Positions of the parameters in the vector.
+struct Layout {
+  int offset = 0;
+  int rate = 1;
+  int drift = -1;
+  int resp = -1;  // cos, sin, rate
+  int harm = 2;   // a1, b1, a2, b2, …
+  int harmonics = 0;
+  int size = 0;
+  explicit Layout(const MotionModelSpec& s) : harmonics(s.harmonics) {
+    int next = 2;
+    if (s.rate_drift) drift = next++;
+    if (s.respiration) {
+      resp = next;
+      next += 3;
+    }
+    harm = next;
+    size = next + 2 * s.harmonics;
+  }
+};
+
+template <typename T>
+T ModelAt(const Layout& l, const T* p, double tau) {
+  T phase = kTwoPi * p[l.rate] * tau;
+  if (l.drift >= 0) phase += kTwoPi * 0.5 * p[l.drift] * tau * tau;
+  using std::cos;
+  using std::sin;
+  const T c1 = cos(phase);
+  const T s1 = sin(phase);
+  T ck = c1;
+  T sk = s1;
+  T x = p[l.offset];
+  for (int k = 0; k < l.harmonics; ++k) {
+    x += p[l.harm + 2 * k] * ck + p[l.harm + 2 * k + 1] * sk;
+    const T next = ck * c1 - sk * s1;
+    sk = sk * c1 + ck * s1;
+    ck = next;
+  }
+  if (l.resp >= 0) {
+    const T r = kTwoPi * p[l.resp + 2] * tau;
+    x += p[l.resp] * cos(r) + p[l.resp + 1] * sin(r);
+  }
+  return x;
+}
+
+double MiddleTime(const estimation::MotionTrace& t) { return 0.5 * (t.t_s.front() + t.t_s.back()); }
+
+struct Residuals {
+  Layout layout;
+  const estimation::MotionTrace* trace;
+  std::vector<std::size_t> index;
+  double t_mid;
+  double sigma;
+  template <typename T>
+  bool operator()(T const* const* p, T* r) const {
+    for (std::size_t i = 0; i < index.size(); ++i) {
+      const std::size_t s = index[i];
+      r[i] = (ModelAt(layout, p[0], trace->t_s[s] - t_mid) - trace->position_mm[s]) / sigma;
+    }
+    return true;
+  }
+};
+
+std::vector<std::size_t> All(const estimation::MotionTrace& t,
+                             const std::vector<std::size_t>& subset) {
+  if (!subset.empty()) return subset;
+  std::vector<std::size_t> all(t.size());
+  std::iota(all.begin(), all.end(), 0);
+  return all;
+}
+
+// Initial parameters: a rate search on the samples within the middle `fraction`.
+std::vector<double> InitialGuess(const MotionModelSpec& spec, const estimation::MotionTrace& trace,
+                                 const std::vector<std::size_t>& index) {
+  const double t_mid = MiddleTime(trace);
+  const double half = std::max(trace.duration_s() / 6.0, 2.0);
+  std::vector<double> t;
+  std::vector<double> x;
+  for (std::size_t i : index) {
+    if (std::abs(trace.t_s[i] - t_mid) <= half) {
+      t.push_back(trace.t_s[i]);
+      x.push_back(trace.position_mm[i]);
+    }
+  }
+  estimation::HarmonicFitOptions o;
+  o.harmonics = spec.harmonics;
+  o.trend_order = 0;
+  const estimation::HarmonicFit fit =
+      estimation::FitHarmonics(t.data(), x.data(), t.size(), t_mid, o);
+  const Layout l(spec);
+  std::vector<double> p(static_cast<std::size_t>(l.size), 0.0);
+  p[0] = fit.motion.offset_mm;
+  p[1] = fit.motion.frequency_hz;
+  for (int k = 1; k <= spec.harmonics; ++k) {
+    // The fit's phase is θ = φ + p0; rotate to φ = 2πfτ.
+    const double a = fit.motion.cos_mm[static_cast<std::size_t>(k - 1)];
+    const double b = fit.motion.sin_mm[static_cast<std::size_t>(k - 1)];
+    const double d = k * fit.motion.phase0_rad;
+    p[static_cast<std::size_t>(l.harm + 2 * (k - 1))] = a * std::cos(d) + b * std::sin(d);
+    p[static_cast<std::size_t>(l.harm + 2 * (k - 1) + 1)] = -a * std::sin(d) + b * std::cos(d);
+  }
+  if (l.resp >= 0) p[static_cast<std::size_t>(l.resp + 2)] = 0.25;
+  return p;
+}
+
+void Solve(const Layout& l, const estimation::MotionTrace& trace,
+           const std::vector<std::size_t>& index, double sigma, std::vector<double>& p,
+           ceres::Problem* keep = nullptr) {
+  auto* functor = new Residuals{l, &trace, index, MiddleTime(trace), sigma};
+  auto* cost = new ceres::DynamicAutoDiffCostFunction<Residuals, 8>(functor);
+  cost->AddParameterBlock(l.size);
+  cost->SetNumResiduals(static_cast<int>(index.size()));
+  ceres::Problem local;
+  ceres::Problem& problem = keep != nullptr ? *keep : local;
+  problem.AddResidualBlock(cost, nullptr, p.data());
+  problem.SetParameterLowerBound(p.data(), l.rate, 0.3);
+  problem.SetParameterUpperBound(p.data(), l.rate, 4.0);
+  if (l.drift >= 0) {
+    problem.SetParameterLowerBound(p.data(), l.drift, -0.1);
+    problem.SetParameterUpperBound(p.data(), l.drift, 0.1);
+  }
+  if (l.resp >= 0) {
+    problem.SetParameterLowerBound(p.data(), l.resp + 2, kMinRespirationHz);
+    problem.SetParameterUpperBound(p.data(), l.resp + 2, kMaxRespirationHz);
+  }
+  ceres::Solver::Options so;
+  so.max_num_iterations = 60;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.logging_type = ceres::SILENT;
+  so.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+}
+
+std::vector<ParameterEstimate> Estimates(const Layout& l, const std::vector<double>& p) {
+  std::vector<ParameterEstimate> e;
+  e.push_back({"offset", "mm", p[0], std::nan("")});
+  e.push_back({"heart_rate", "Hz", p[1], std::nan("")});
+  if (l.drift >= 0)
+    e.push_back({"rate_drift", "Hz/s", p[static_cast<std::size_t>(l.drift)], std::nan("")});
+  if (l.resp >= 0) {
+    e.push_back({"respiration_cos", "mm", p[static_cast<std::size_t>(l.resp)], std::nan("")});
+    e.push_back({"respiration_sin", "mm", p[static_cast<std::size_t>(l.resp + 1)], std::nan("")});
+    e.push_back({"respiration_rate", "Hz", p[static_cast<std::size_t>(l.resp + 2)], std::nan("")});
+  }
+  for (int k = 1; k <= l.harmonics; ++k) {
+    e.push_back({"cos" + std::to_string(k), "mm", p[static_cast<std::size_t>(l.harm + 2 * (k - 1))],
+                 std::nan("")});
+    e.push_back({"sin" + std::to_string(k), "mm",
+                 p[static_cast<std::size_t>(l.harm + 2 * (k - 1) + 1)], std::nan("")});
+  }
+  return e;
+}
+
+}  // namespace
+
+MotionModelSpec ParseMotionModel(const std::string& text) {
+  const std::string catalog = " (a motion model is heartbeat:N, N in 1-12, plus any of +" +
+                              std::string("respiration, +rate_drift, +harmonic)");
+  MotionModelSpec spec;
+  std::size_t start = 0;
+  bool first = true;
+  while (start <= text.size()) {
+    const std::size_t end = std::min(text.find('+', start), text.size());
+    const std::string term = text.substr(start, end - start);
+    if (first) {
+      if (term.rfind("heartbeat:", 0) != 0) {
+        throw std::invalid_argument("--model '" + text + "': must start with heartbeat:N" +
+                                    catalog);
+      }
+      const std::string n = term.substr(10);
+      if (n.empty() || n.size() > 2 ||
+          !std::all_of(n.begin(), n.end(), [](char c) { return c >= '0' && c <= '9'; }) ||
+          std::stoi(n) < 1 || std::stoi(n) > kMaxHarmonics) {
+        throw std::invalid_argument("--model '" + text + "': bad harmonic count '" + n + "'" +
+                                    catalog);
+      }
+      spec.harmonics = std::stoi(n);
+      first = false;
+    } else if (term == "respiration") {
+      spec.respiration = true;
+    } else if (term == "rate_drift") {
+      spec.rate_drift = true;
+    } else if (term == "harmonic") {
+      spec = WithMotionEffect(spec, "harmonic");
+    } else {
+      throw std::invalid_argument("--model '" + text + "': unknown term '" + term + "'" + catalog);
+    }
+    start = end + 1;
+  }
+  return spec;
+}
+
+std::string FormatMotionModel(const MotionModelSpec& s) {
+  return "heartbeat:" + std::to_string(s.harmonics) + (s.respiration ? "+respiration" : "") +
+         (s.rate_drift ? "+rate_drift" : "");
+}
+
+std::vector<std::string> MotionEffectNames() { return {"harmonic", "respiration", "rate_drift"}; }
+
+std::string MotionEffectSignature(const std::string& effect) {
+  if (effect == "harmonic")
+    return "the residual repeats every beat: shape detail within the cardiac cycle";
+  if (effect == "respiration")
+    return "a slow oscillation (0.08-0.7 Hz) under the beats: the residual follows breathing";
+  if (effect == "rate_drift")
+    return "beats drift out of phase with a constant rate: the residual grows towards both ends";
+  throw std::invalid_argument("unknown motion effect '" + effect + "'");
+}
+
+std::vector<std::string> MissingMotionEffects(const MotionModelSpec& s) {
+  std::vector<std::string> out;
+  if (s.harmonics < kMaxHarmonics) out.push_back("harmonic");
+  if (!s.respiration) out.push_back("respiration");
+  if (!s.rate_drift) out.push_back("rate_drift");
+  return out;
+}
+
+MotionModelSpec WithMotionEffect(MotionModelSpec s, const std::string& effect) {
+  if (effect == "harmonic") {
+    if (s.harmonics >= kMaxHarmonics)
+      throw std::invalid_argument("motion model: at most 12 harmonics");
+    ++s.harmonics;
+  } else if (effect == "respiration") {
+    s.respiration = true;
+  } else if (effect == "rate_drift") {
+    s.rate_drift = true;
+  } else {
+    MotionEffectSignature(effect);  // throws for an unknown name
+  }
+  return s;
+}
+
+double EvaluateMotionModel(const MotionModelSpec& spec, const std::vector<double>& p,
+                           const estimation::MotionTrace& trace, double noise_mm,
+                           const std::vector<std::size_t>& subset) {
+  const Layout l(spec);
+  const double t_mid = MiddleTime(trace);
+  double ss = 0.0;
+  const std::vector<std::size_t> index = All(trace, subset);
+  for (std::size_t i : index) {
+    ss +=
+        std::pow((ModelAt(l, p.data(), trace.t_s[i] - t_mid) - trace.position_mm[i]) / noise_mm, 2);
+  }
+  return ss / static_cast<double>(index.size());
+}
+
+MotionFit FitMotionModel(const MotionModelSpec& spec, const estimation::MotionTrace& trace,
+                         double noise_mm, const std::vector<std::size_t>& subset,
+                         const std::vector<double>* initial) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ValidateMotionTrace(trace);
+  if (trace.duration_s() < 2.0 / 0.6) {
+    throw std::invalid_argument(trace.source + ": " + std::to_string(trace.duration_s()) +
+                                " s is too short for the motion lab (two beats at 36 bpm: 3.3 s)");
+  }
+  if (!(noise_mm > 0.0)) throw std::invalid_argument("motion fit: the noise must be > 0");
+  const Layout l(spec);
+  const std::vector<std::size_t> index = All(trace, subset);
+  std::vector<double> p;
+  if (initial != nullptr) {
+    if (initial->size() != static_cast<std::size_t>(l.size)) {
+      throw std::invalid_argument("motion fit: wrong number of initial values");
+    }
+    p = *initial;
+  } else {
+    p = InitialGuess(spec, trace, index);
+    // Widen from the middle third so that a drifting rate is followed.
+    const double t_mid = MiddleTime(trace);
+    for (double fraction : {1.0 / 3.0, 2.0 / 3.0}) {
+      std::vector<std::size_t> part;
+      for (std::size_t i : index) {
+        if (std::abs(trace.t_s[i] - t_mid) <= 0.5 * fraction * trace.duration_s())
+          part.push_back(i);
+      }
+      if (part.size() > static_cast<std::size_t>(2 * l.size)) Solve(l, trace, part, noise_mm, p);
+    }
+  }
+  ceres::Problem problem;
+  Solve(l, trace, index, noise_mm, p, &problem);
+
+  MotionFit fit;
+  fit.spec = spec;
+  fit.parameters = p;
+  fit.estimates = Estimates(l, p);
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::DENSE_SVD;
+  co.null_space_rank = -1;
+  ceres::Covariance covariance(co);
+  const std::vector<std::pair<const double*, const double*>> block = {{p.data(), p.data()}};
+  const double mse = EvaluateMotionModel(spec, p, trace, noise_mm, index);
+  if (covariance.Compute(block, &problem)) {
+    std::vector<double> c(static_cast<std::size_t>(l.size * l.size));
+    covariance.GetCovarianceBlock(p.data(), p.data(), c.data());
+    const double dof = std::max(1.0, static_cast<double>(index.size()) - l.size);
+    const double chi2 = mse * static_cast<double>(index.size()) / dof;
+    // Estimates are in layout order: offset, rate, [drift], [resp ×3], harmonics.
+    for (std::size_t i = 0; i < fit.estimates.size(); ++i) {
+      fit.estimates[i].sd =
+          std::sqrt(std::max(c[i * static_cast<std::size_t>(l.size) + i] * chi2, 0.0));
+    }
+  }
+  const double t_mid = MiddleTime(trace);
+  double ss = 0.0;
+  for (std::size_t i = 0; i < trace.size(); ++i) {
+    const double tau = trace.t_s[i] - t_mid;
+    const double x = ModelAt(l, p.data(), tau);
+    fit.prediction_mm.push_back(x);
+    double phase =
+        kTwoPi * (p[1] * tau +
+                  (l.drift >= 0 ? 0.5 * p[static_cast<std::size_t>(l.drift)] * tau * tau : 0.0));
+    phase = std::fmod(phase, kTwoPi);
+    fit.phase_rad.push_back(phase < 0.0 ? phase + kTwoPi : phase);
+    ss += std::pow(x - trace.position_mm[i], 2);
+  }
+  fit.rms_mm = std::sqrt(ss / static_cast<double>(trace.size()));
+  fit.mse_norm = mse;
+  fit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return fit;
+}
+
+std::vector<double> StartMotionParameters(const MotionModelSpec& to, const MotionFit& from,
+                                          const estimation::MotionTrace& trace) {
+  const Layout a(from.spec);
+  const Layout b(to);
+  std::vector<double> p(static_cast<std::size_t>(b.size), 0.0);
+  const auto& q = from.parameters;
+  p[0] = q[0];
+  p[1] = q[1];
+  if (a.drift >= 0 && b.drift >= 0)
+    p[static_cast<std::size_t>(b.drift)] = q[static_cast<std::size_t>(a.drift)];
+  for (int k = 0; k < std::min(a.harmonics, b.harmonics); ++k) {
+    p[static_cast<std::size_t>(b.harm + 2 * k)] = q[static_cast<std::size_t>(a.harm + 2 * k)];
+    p[static_cast<std::size_t>(b.harm + 2 * k + 1)] =
+        q[static_cast<std::size_t>(a.harm + 2 * k + 1)];
+  }
+  if (b.resp >= 0) {
+    if (a.resp >= 0) {
+      for (int j = 0; j < 3; ++j)
+        p[static_cast<std::size_t>(b.resp + j)] = q[static_cast<std::size_t>(a.resp + j)];
+    } else {
+      // The strongest slow sinusoid in the residual.
+      const double t_mid = MiddleTime(trace);
+      double best = -1.0;
+      for (double f = kMinRespirationHz; f <= kMaxRespirationHz; f += 0.002) {
+        double cc = 0, ss = 0, cs = 0, cy = 0, sy = 0;
+        for (std::size_t i = 0; i < trace.size(); ++i) {
+          const double y = trace.position_mm[i] - from.prediction_mm[i];
+          const double c = std::cos(kTwoPi * f * (trace.t_s[i] - t_mid));
+          const double s = std::sin(kTwoPi * f * (trace.t_s[i] - t_mid));
+          cc += c * c;
+          ss += s * s;
+          cs += c * s;
+          cy += c * y;
+          sy += s * y;
+        }
+        const double det = cc * ss - cs * cs;
+        if (!(det > 0.0)) continue;
+        const double rc = (ss * cy - cs * sy) / det;
+        const double rs = (cc * sy - cs * cy) / det;
+        const double gain = rc * cy + rs * sy;  // residual sum of squares removed
+        if (gain > best) {
+          best = gain;
+          p[static_cast<std::size_t>(b.resp)] = rc;
+          p[static_cast<std::size_t>(b.resp + 1)] = rs;
+          p[static_cast<std::size_t>(b.resp + 2)] = f;
+        }
+      }
+    }
+  }
+  return p;
+}
+
+}  // namespace echoservo::lab

@@ -1,0 +1,272 @@
+#include "live/demo_run.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "hw/io/run_record.h"
+#include "hw/sim_em_tracker.h"
+#include "imaging/io/sequence_writer.h"
+#include "link/dds_link.h"
+#include "link/security.h"
+#include "live/delayed_scanner.h"
+#include "live/pipeline_clock.h"
+#include "live/servo_node.h"
+#include "live/sim_catheter.h"
+#include "live/sim_scene.h"
+#include "live/tracker_node.h"
+#include "report/accuracy_report.h"
+
+namespace echoservo::live {
+namespace {
+
+// Arrival times of the published volumes by sequence number: the latency's start, which
+// the DDS sample does not carry (in-process bookkeeping of the demo only).
+struct Arrivals {
+  std::mutex m;
+  std::deque<std::pair<std::uint64_t, double>> seq_arrived;
+  void Add(std::uint64_t seq, double arrived_s) {
+    std::lock_guard lock(m);
+    seq_arrived.emplace_back(seq, arrived_s);
+    while (seq_arrived.size() > 256) seq_arrived.pop_front();
+  }
+  std::optional<double> Find(std::uint64_t seq) {
+    std::lock_guard lock(m);
+    for (const auto& [s, a] : seq_arrived)
+      if (s == seq) return a;
+    return std::nullopt;
+  }
+};
+
+std::string Fmt(const char* f, auto... args) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf, f, args...);
+  return buf;
+}
+
+// The 3 × 4 rows of a rigid transform, comma-separated (run.json "em_to_image").
+std::string RowMajor(const Eigen::Isometry3d& t) {
+  std::string out;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) {
+      if (!out.empty()) out += ',';
+      out += Fmt("%.9g", t.matrix()(r, c));
+    }
+  return out;
+}
+
+// The dds.sec.* properties of `role` in --secure DIR (errors name the flag and the file).
+std::vector<std::pair<std::string, std::string>> SecureProperties(const std::string& dir,
+                                                                  const std::string& role) {
+  try {
+    return link::SecurityProperties(link::CheckSecurityDir(dir, role));
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("demo: --secure " + dir + " (identity '" + role +
+                                "'): " + e.what());
+  }
+}
+
+}  // namespace
+
+void DemoOptions::Validate() const {
+  auto bad = [](const std::string& f, const std::string& why) {
+    throw std::invalid_argument("demo: " + f + " " + why);
+  };
+  if (!(duration_s > 0 && duration_s <= 3600)) bad("--duration", "must be in (0, 3600] s");
+  if (!(rate_hz > 0 && rate_hz <= 60)) bad("--rate", "must be in (0, 60] vol/s");
+  if (!(delay_min_s >= 0 && delay_max_s >= delay_min_s && delay_max_s <= 1))
+    bad("--delay", "must satisfy 0 ≤ min ≤ max ≤ 1 s");
+  if (!(heart_rate_bpm >= 30 && heart_rate_bpm <= 180))
+    bad("--heart-rate", "must be in [30, 180] bpm");
+  if (!(target_p2p_mm > 0 && target_p2p_mm <= 20)) bad("--target-p2p", "must be in (0, 20] mm");
+  if (!(standoff_mm >= 0 && standoff_mm <= 30)) bad("--standoff", "must be in [0, 30] mm");
+  if (!(harmonics >= 1 && harmonics <= 12)) bad("--harmonics", "must be in [1, 12]");
+  if (!(metrics_start_s >= 0 && metrics_start_s < duration_s))
+    bad("--metrics-start", "must be in [0, duration)");
+  if (save_volumes && out_dir.empty()) bad("--save-volumes", "needs --out RUN");
+  if (!(dds_domain >= 0 && dds_domain <= 232)) bad("--dds-domain", "must be in [0, 232]");
+  if (!(guidewire_od_mm > 0 && sheath_id_mm > guidewire_od_mm && sheath_id_mm <= 5))
+    bad("--sheath-id/--guidewire-od", "must satisfy 0 < guidewire < sheath ≤ 5 mm");
+  if (!secure_dir.empty()) {  // before the scene is built: a bad directory fails at once
+    SecureProperties(secure_dir, "tracker");
+    SecureProperties(secure_dir, "servo");
+  }
+}
+
+DemoResult RunDemo(const DemoOptions& o) {
+  o.Validate();
+  auto log = [&](const std::string& s) {
+    if (o.log) o.log(s);
+  };
+
+  SimScene scene({o.rate_hz, o.heart_rate_bpm, o.target_p2p_mm, o.standoff_mm, o.seed});
+  const Eigen::Isometry3d em_to_image = scene.em_to_image();
+
+  // The RUN directory (hw/io/run_record.h): run.json now, the streams as they come.
+  std::unique_ptr<hw::RunWriter> writer;
+  if (!o.out_dir.empty()) {
+    hw::RunInfo info;
+    info.heart_rate_hz = o.heart_rate_bpm / 60.0;
+    info.standoff_mm = o.standoff_mm;
+    info.metadata_json =
+        Fmt("{\"source\": \"echoservo demo\", \"seed\": %llu, \"duration_s\": %.3f, "
+            "\"em_to_image\": \"%s\"}",
+            static_cast<unsigned long long>(o.seed), o.duration_s, RowMajor(em_to_image).c_str());
+    writer = std::make_unique<hw::RunWriter>(o.out_dir, info);
+  }
+
+  // The DDS link (link/dds_link.h): the tracker's and the servo's participants, loopback
+  // only. Samples carry the shared (system) clock: pipeline time + link_offset_s.
+  link::ParticipantOptions po;
+  po.domain_id = o.dds_domain;
+  po.loopback_only = true;
+  po.name = "echoservo_demo_tracker";
+  if (!o.secure_dir.empty()) po.properties = SecureProperties(o.secure_dir, "tracker");
+  link::Participant tracker_participant(po);
+  po.name = "echoservo_demo_servo";
+  if (!o.secure_dir.empty()) po.properties = SecureProperties(o.secure_dir, "servo");
+  link::Participant servo_participant(po);
+  link::TargetPublisher target_pub(tracker_participant);
+
+  const PipelineClock clock(0.3);
+  TrackerNodeOptions to;
+  to.link_offset_s = clock.link_offset_s();
+  if (o.zero_order_hold) to.predictor = TargetPredictor::kZeroOrderHold;
+  to.ekf.harmonics = o.harmonics;
+  to.ekf.max_harmonics = std::max(to.ekf.max_harmonics, o.harmonics);
+  // The volumes as the tracker receives them, each on disk before the next is taken.
+  std::unique_ptr<imaging::SequenceWriter> recorder;
+  if (o.save_volumes)
+    recorder = std::make_unique<imaging::SequenceWriter>(o.out_dir / "volumes.igs.mhd");
+  TrackerNode tracker(to, &target_pub, writer.get(), recorder.get());
+  SimCatheter catheter = MakeSimCatheter(o.sheath_id_mm, o.guidewire_od_mm, o.seed);
+  hw::SimulatedCatheter& plant = *catheter.plant;
+  ServoNodeOptions so;
+  so.follower.standoff_mm = o.standoff_mm;
+  so.follower.offset_gain = 0.05;
+  so.follower.estimate_scale = true;  // image mm = 1540/1482 catheter mm in the water tank
+  // The operator's enable once tracking delivers, and again after a retraction (the demo
+  // resumes by itself; a clinical system waits for the operator's ENABLE command).
+  so.auto_enable = true;
+  so.link_offset_s = clock.link_offset_s();
+  ServoNode servo(plant, catheter.servo, std::move(catheter.compensator), so, &servo_participant);
+  target_pub.WaitForSubscribers(1, 5.0);
+
+  DemoResult result;
+  std::atomic<bool> stop{false};
+  Arrivals arrivals;
+  DelayedScanner scanner(scene, clock,
+                         {o.rate_hz, o.delay_min_s, o.delay_max_s, o.duration_s, o.seed});
+
+  // Tracker: the newest delivered volume → detector → EKF → link.
+  std::thread tracker_thread([&] {
+    while (true) {
+      std::optional<Delivery> d = scanner.Next(0.05);
+      if (!d) {
+        if (stop || scanner.finished()) break;
+        continue;
+      }
+      const double arrived = clock.Now();
+      const TrackedVolume r =
+          tracker.Process(d->volume, d->acquired_s, arrived, [&] { return clock.Now(); });
+      if (!r.error.empty()) log("tracker: " + r.error);
+      if (r.published) arrivals.Add(r.sequence, arrived);
+    }
+  });
+
+  // Servo: 1 kHz on absolute deadlines, in this thread.
+  std::vector<double> latency_ms;
+  double em_sq = 0.0, true_sq = 0.0;
+  std::uint64_t em_n = 0, true_n = 0;
+  hw::SimEmTracker em(scene.em_options(), 0.0);
+  const double period = catheter.servo.period_s;
+  servo.Start(0.0);
+  for (std::uint64_t k = 0;; ++k) {
+    const double t = static_cast<double>(k) * period;
+    if (t > o.duration_s) break;
+    std::this_thread::sleep_until(clock.At(t));
+    if (clock.Now() > t + period) ++result.servo_overruns;
+    const ServoCycle c = servo.Cycle(t, k);
+    if (c.applied_sequence) {
+      if (const std::optional<double> arrived = arrivals.Find(*c.applied_sequence)) {
+        const double applied = clock.Now();
+        latency_ms.push_back(1e3 * (applied - *arrived));
+        if (writer) writer->AddLatency({*arrived, applied});
+      }
+    }
+    const double tip_true = plant.truth().tip_mm;
+    scene.SetPlantTip(t, tip_true);
+    const Eigen::Vector3d tip_img = scene.TipImage(tip_true);
+    if (t >= o.metrics_start_s) {
+      true_sq += (tip_img - scene.DesiredTip(t)).squaredNorm();
+      ++true_n;
+    }
+    while (em.next_sample_s() <= t) {
+      const double t_sample = em.next_sample_s();
+      const hw::EmSample r = em.Sample(tip_img);
+      if (writer) writer->AddEm(r);
+      if (r.valid && t_sample >= o.metrics_start_s) {
+        const double t_pipeline = r.t_s - scene.em_options().clock_offset_s;
+        em_sq += (em_to_image * r.position_mm - scene.DesiredTip(t_pipeline)).squaredNorm();
+        ++em_n;
+      }
+    }
+    const std::string mode = control::ToString(servo.follower().mode());
+    if (k % 10 == 0 && writer) {
+      writer->AddServo({t, mode, c.record.reference_mm, c.record.base_mm, c.record.tip_mm,
+                        static_cast<double>(servo.stats().fault_events)});
+      writer->AddTruth({t, scene.TargetImage(t), tip_img});
+    }
+    if (k % 1000 == 0 && k > 0)
+      log(Fmt("t %.0f s: mode %s, volumes %llu, detected %llu", t, mode.c_str(),
+              static_cast<unsigned long long>(scanner.acquired()),
+              static_cast<unsigned long long>(tracker.stats().measured)));
+  }
+  stop = true;
+  scanner.Stop();
+  tracker_thread.join();
+
+  const ServoNodeStats& ss = servo.stats();
+  const TrackerStats& ts = tracker.stats();
+  result.servo_cycles = ss.cycles;
+  result.limit_faults = ss.limit_interventions;
+  result.limit_violations = ss.limit_violations;
+  result.resumes = ss.resumes;
+  result.em_samples = em.samples();
+  result.em_dropouts = em.dropouts();
+  result.estimates_accepted = ss.estimates_accepted;
+  result.estimates_rejected =
+      ss.estimates_rejected + servo.target_link_stats().validation.total_rejected();
+  result.ekf_harmonics = tracker.ekf().harmonics();
+  result.ekf_rate_hz = tracker.ekf().rate_hz();
+  result.volumes = scanner.acquired();
+  result.detected = ts.measured;
+  result.missed_acquisitions = scanner.missed();
+  result.dropped_frames = scanner.dropped() + ts.not_found + scanner.missed();
+  result.tracker_errors = ts.errors;
+  result.tip_to_target_rms_mm = em_n ? std::sqrt(em_sq / static_cast<double>(em_n)) : 0.0;
+  result.true_tip_to_target_rms_mm =
+      true_n ? std::sqrt(true_sq / static_cast<double>(true_n)) : 0.0;
+  result.latency.count = latency_ms.size();
+  if (!latency_ms.empty()) {
+    result.latency.p50_ms = report::Percentile(latency_ms, 0.5);
+    result.latency.p99_ms = report::Percentile(latency_ms, 0.99);
+    result.latency.max_ms = report::Percentile(latency_ms, 1.0);
+  }
+  result.volumes_recorded = ts.recorded;
+  if (writer) writer->Flush();
+  if (recorder) recorder->SyncData();
+  return result;
+}
+
+}  // namespace echoservo::live

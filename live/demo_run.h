@@ -1,0 +1,84 @@
+// The closed-loop demo: simulated scanner → tracker (detector + heartbeat EKF) → DDS link →
+// 1 kHz catheter servo on the simulated catheter, whose tip moves the catheter in the
+// scanner's scene; a simulated EM tracker on the tip measures the result.
+//
+// Real time on the host's steady clock (the pipeline clock, s since the run's start), three
+// threads (scanner, tracker, servo) built from the pieces the separate processes use.
+// Out: tip-to-target RMS (mm) from the EM samples and from the plant's true tip, after
+// metrics_start_s; latency (ms, volume arrival → first servo cycle applying its estimate);
+// counts. Units: mm, s, image frame. Errors: RunDemo throws std::invalid_argument for bad
+// options, std::runtime_error when the RUN directory cannot be written.
+// Details: docs/live.md#the-demo
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+
+namespace echoservo::live {
+
+struct DemoOptions {
+  double duration_s = 20.0;   // (0, 3600]
+  double rate_hz = 25.0;      // volume rate, (0, 60]
+  double delay_min_s = 0.05;  // imaging delay range, [0, 1]
+  double delay_max_s = 0.10;
+  double heart_rate_bpm = 60.0;  // target: the mitral annulus trajectory, [30, 180]
+  double target_p2p_mm = 10.0;   // its peak-to-peak excursion, (0, 20]
+  double standoff_mm =
+      8.0;  // [0, 30]; the detector needs ≥ 4 mm of gap to see the target, plus margin
+  double metrics_start_s = 3.0;
+  std::uint64_t seed = 1;
+  std::filesystem::path out_dir;  // the RUN directory (docs/report.md); empty: not written
+  // Also record the volumes the tracker receives to out_dir/volumes.igs.mhd (+ .raw: a
+  // PLUS sequence, uncompressed, 4.9 MB a volume, each on disk as it is processed; see
+  // imaging/io/sequence_writer.h) for `echoservo track --replay`.
+  bool save_volumes = false;
+  // The tracker's published motion: the EKF, or the zero-order-hold baseline.
+  bool zero_order_hold = false;
+  // The EKF's harmonic count, [1, 12] (TrackerNodeOptions::DefaultEkfOptions: 8, the mitral
+  // shape's). It needs 2·(2·harmonics + 4) volumes before it publishes: 40 at 8, about 1.6 s
+  // at 25 vol/s; fewer let a slow host (a sanitizer build) start following sooner.
+  int harmonics = 8;
+  double sheath_id_mm = 1.59;  // the seed's water-tank catheter (its two bends)
+  double guidewire_od_mm = 1.50;
+  int dds_domain = 42;  // the DDS domain of the tracker → servo link (loopback only)
+  // DDS-Security: a credential directory of `echoservo security init` (link/security.h);
+  // the tracker's participant uses its "tracker" identity, the servo's its "servo".
+  std::string secure_dir;
+  std::function<void(const std::string&)> log;  // progress lines; may be null
+  // Throws std::invalid_argument naming the option.
+  void Validate() const;
+};
+
+struct LatencyStats {
+  double p50_ms = 0.0, p99_ms = 0.0, max_ms = 0.0;
+  std::uint64_t count = 0;
+};
+
+struct DemoResult {
+  double tip_to_target_rms_mm = 0.0;       // EM-measured
+  double true_tip_to_target_rms_mm = 0.0;  // plant truth
+  LatencyStats latency;                    // arrival → setpoint applied
+  std::uint64_t volumes = 0;               // acquired
+  std::uint64_t detected = 0;              // volumes with a catheter found
+  std::uint64_t dropped_frames = 0;  // not detected, skipped by a late tracker, or not acquired
+  std::uint64_t missed_acquisitions = 0;  // acquisition slots lost to a late renderer
+  std::uint64_t tracker_errors = 0;       // volumes the tracker could not process (logged)
+  std::uint64_t volumes_recorded = 0;     // --save-volumes: volumes written to volumes.igs.mhd
+  std::uint64_t estimates_accepted = 0;   // by the servo
+  std::uint64_t estimates_rejected = 0;
+  std::uint64_t em_samples = 0, em_dropouts = 0;
+  std::uint64_t servo_cycles = 0, servo_overruns = 0;
+  std::uint64_t limit_faults = 0;      // limiter interventions counted as faults (clamps)
+  std::uint64_t limit_violations = 0;  // cycles commanding outside a limit: must be 0
+  std::uint64_t resumes = 0;           // following resumed after a watchdog retraction
+  int ekf_harmonics = 0;
+  double ekf_rate_hz = 0.0;
+};
+
+// Runs the demo for options.duration_s of real time. Throws std::invalid_argument for bad
+// options, std::runtime_error when the RUN directory cannot be written.
+DemoResult RunDemo(const DemoOptions& options);
+
+}  // namespace echoservo::live

@@ -1,0 +1,96 @@
+#include "live/sim_scene.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <stdexcept>
+
+#include "control/trajectory.h"
+#include "imaging/sim/catheter_scene.h"
+#include "imaging/sim/simulated_scanner.h"
+
+namespace echoservo::live {
+namespace {
+
+// The scanner's catheter advance at the plant's tip position 0: the tip then rests
+// 10.5 mm short of the annulus's near face (5.5–15.5 mm as it moves ±5 mm), and following
+// it at the default standoff keeps the plant's tip within its travel.
+constexpr double kAdvanceAtZeroMm = 3.0;
+
+}  // namespace
+
+SimScene::SimScene(const SimSceneOptions& o) : o_(o) {
+  imaging::sim::SimulatedScannerOptions so;
+  imaging::sim::PlaceCatheterScene({0.0, 10.0, 60.0, 0.0, kAdvanceAtZeroMm}, so);
+  so.rate_hz = o.rate_hz;
+  so.seed = o.seed;
+  char spec[64];
+  std::snprintf(spec, sizeof spec, "mitral:%g:%g", o.heart_rate_bpm, o.target_p2p_mm);
+  target_motion_ = control::MakeTrajectory(spec);
+  const imaging::sim::CatheterPose rest = so.catheter_pose;
+  so.catheter_pose_at = [this, rest](double t) {
+    imaging::sim::CatheterPose p = rest;
+    p.advance_mm = rest.advance_mm + PlantTipAt(t);
+    return p;
+  };
+  so.target_displacement_mm = [this](double t) { return target_motion_->Evaluate(t).position_mm; };
+  scanner_ = std::make_unique<imaging::sim::SimulatedScanner>(so);
+
+  const auto& cg = so.catheter_geometry;
+  base_to_world_ = rest.base_to_world;
+  tip_at_zero_mm_ = rest.advance_mm + cg.sheath_length_mm + cg.wire_protrusion_mm;
+  axis_image_ = (scanner_->WorldToImage(base_to_world_ * Eigen::Vector3d(0, 0, 1)) -
+                 scanner_->WorldToImage(base_to_world_ * Eigen::Vector3d::Zero()))
+                    .normalized();
+  displacement_image_ = scanner_->WorldToImage(so.annulus_to_world.linear().col(2)) -
+                        scanner_->WorldToImage(Eigen::Vector3d::Zero());
+  const imaging::SourceFrame first = scanner_->Render(0.0);
+  if (!first.truth || !first.truth->target_visible)
+    throw std::logic_error("SimScene: the scene's target is not visible");
+  target0_mm_ = first.truth->target_mm;
+  d0_mm_ = target_motion_->Evaluate(0.0).position_mm;
+
+  em_options_.image_to_em = Eigen::Translation3d(120.0, -35.0, 210.0) *
+                            Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized());
+  em_options_.clock_offset_s = 0.0375;
+  em_options_.seed = o.seed + 11;
+}
+
+SimScene::~SimScene() = default;
+
+void SimScene::SetPlantTip(double t_s, double tip_mm) {
+  std::lock_guard lock(tip_m_);
+  if (!tip_history_.empty() && t_s <= tip_history_.back().first) return;  // out of order: ignored
+  tip_history_.emplace_back(t_s, tip_mm);
+  while (tip_history_.size() > 2 && tip_history_.front().first < t_s - 1.0)
+    tip_history_.pop_front();
+}
+
+double SimScene::PlantTipAt(double t_s) const {
+  std::lock_guard lock(tip_m_);
+  if (tip_history_.empty()) return 0.0;
+  if (t_s <= tip_history_.front().first) return tip_history_.front().second;
+  if (t_s >= tip_history_.back().first) return tip_history_.back().second;
+  const auto hi =
+      std::lower_bound(tip_history_.begin(), tip_history_.end(), t_s,
+                       [](const std::pair<double, double>& p, double t) { return p.first < t; });
+  const auto lo = hi - 1;
+  const double f = (t_s - lo->first) / (hi->first - lo->first);
+  return lo->second + f * (hi->second - lo->second);
+}
+
+imaging::SourceFrame SimScene::Render(double t_s) { return scanner_->Render(t_s); }
+
+Eigen::Vector3d SimScene::TipImage(double plant_tip_mm) const {
+  return scanner_->WorldToImage(base_to_world_ *
+                                Eigen::Vector3d(0, 0, tip_at_zero_mm_ + plant_tip_mm));
+}
+
+Eigen::Vector3d SimScene::TargetImage(double t_s) const {
+  return target0_mm_ + (target_motion_->Evaluate(t_s).position_mm - d0_mm_) * displacement_image_;
+}
+
+Eigen::Vector3d SimScene::DesiredTip(double t_s) const {
+  return TargetImage(t_s) - o_.standoff_mm * axis_image_;
+}
+
+}  // namespace echoservo::live

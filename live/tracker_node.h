@@ -1,0 +1,100 @@
+// The tracker node of the live pipeline: one volume in → catheter and target detected
+// (tracking/radon_detector.h, tracking mode) → the target's axis coordinate into the
+// heartbeat EKF (estimation/heartbeat_ekf.h) → the predicted motion published as a target
+// estimate on the DDS link (link/dds_link.h) → a row in the RUN directory
+// (hw/io/run_record.h). `echoservo track` and `echoservo demo` drive the same node.
+//
+// Clocks: the caller's times (acquisition, arrival, now) are on one node clock in s; link
+// stamps = node time + link_offset_s. Axis coordinates (mm) along the first detection's axis
+// from the image origin. Errors in one volume are counted and reported in the result (the
+// node goes on); the constructor throws std::invalid_argument for bad options.
+// Details: docs/live.md#the-tracker-node-livetracker_nodeh
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+
+#include "estimation/heartbeat_ekf.h"
+#include "imaging/volume.h"
+#include "link/dds_link.h"
+#include "tracking/radon_detector.h"
+
+namespace echoservo::hw {
+class RunWriter;
+}
+namespace echoservo::imaging {
+class SequenceWriter;
+}
+
+namespace echoservo::live {
+
+// What the node publishes as the target's motion: the heartbeat EKF's prediction, or the
+// zero-order hold of the newest measurement (the baseline: a constant model, no
+// prediction through the delay).
+enum class TargetPredictor { kHeartbeatEkf, kZeroOrderHold };
+
+struct TrackerNodeOptions {
+  TargetPredictor predictor = TargetPredictor::kHeartbeatEkf;
+  tracking::RadonDetectorOptions detector;
+  estimation::HeartbeatEkfOptions ekf = DefaultEkfOptions();
+  double link_offset_s = 0.0;  // link time − node time
+
+  // The live defaults: a 2 s initial window, 8 harmonics.
+  static estimation::HeartbeatEkfOptions DefaultEkfOptions();
+};
+
+// What the node did with one volume.
+struct TrackedVolume {
+  tracking::CatheterDetection detection;
+  bool measured = false;       // catheter and target found, EKF updated
+  bool published = false;      // an estimate went out (EKF initialised, link present)
+  std::uint64_t sequence = 0;  // its sequence number
+  double published_s = 0.0;    // node clock
+  std::string error;           // non-empty when the volume could not be processed
+};
+
+struct TrackerStats {
+  std::uint64_t volumes = 0, measured = 0, not_found = 0, published = 0, errors = 0,
+                publish_failures = 0;
+  std::uint64_t recorded = 0, record_errors = 0;  // volumes appended to the recorder
+};
+
+class TrackerNode {
+ public:
+  // `publisher` (may be null: no link), `writer` (may be null: no RUN directory) and
+  // `recorder` (may be null: volumes not recorded) must outlive the node. Throws
+  // std::invalid_argument for bad options.
+  TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher, hw::RunWriter* writer,
+              imaging::SequenceWriter* recorder = nullptr);
+
+  // Processes one volume acquired at `acquired_s` that arrived at `arrived_s`; `now_s`
+  // gives the node clock (the publication time is taken after detection and EKF). Then
+  // appends the volume, as received, to the recorder; a recording error is reported in
+  // the result's `error` and ends the recording (tracking goes on).
+  TrackedVolume Process(const imaging::Volume& volume, double acquired_s, double arrived_s,
+                        const std::function<double()>& now_s);
+
+  const TrackerStats& stats() const { return stats_; }
+  const estimation::HeartbeatEkf& ekf() const { return ekf_; }
+  // The axis direction of the link's coordinates (nullopt before the first detection).
+  const std::optional<Eigen::Vector3d>& reference_axis() const { return reference_axis_; }
+
+ private:
+  TrackedVolume Track(const imaging::Volume& volume, double acquired_s, double arrived_s,
+                      const std::function<double()>& now_s);
+
+  TrackerNodeOptions o_;
+  link::TargetPublisher* publisher_;
+  hw::RunWriter* writer_;
+  imaging::SequenceWriter* recorder_;
+  tracking::RadonDetector detector_;
+  estimation::HeartbeatEkf ekf_;
+  std::optional<Eigen::Vector3d> reference_axis_;
+  std::uint64_t sequence_ = 0;
+  TrackerStats stats_;
+};
+
+}  // namespace echoservo::live

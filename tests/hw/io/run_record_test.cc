@@ -1,0 +1,222 @@
+// The RUN directory (hw/io/run_record.h): what RunWriter writes, ReadRunRecord reads back
+// exactly; bad files and bad rows are errors naming the file, the line and the column.
+#include "hw/io/run_record.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "hw/io/em_log.h"
+#include "tests/test_util/expect_error.h"
+#include "tests/test_util/temp_dir.h"
+#include "tests/test_util/trial_files.h"
+
+namespace echoservo {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::ExpectContains;
+using testing::InvalidArgumentMessage;
+using testing::SetCsvField;
+using testing::TempDir;
+using testing::WriteLines;
+
+hw::TargetRecord Target(double t, bool found) {
+  hw::TargetRecord r;
+  r.acquired_s = t;
+  r.arrived_s = t + 0.011;
+  r.published_s = t + 0.023;
+  r.found = found;
+  r.target_mm = {t, 2 * t, -t};
+  r.tip_mm = {t + 1, 2 * t, -t};
+  r.axis = {0, 0, 1};
+  r.confidence = 0.9;
+  return r;
+}
+
+// A small run: 20 volumes (one not found), servo, latency, EM and truth rows.
+void WriteSmallRun(const fs::path& dir) {
+  hw::RunInfo info;
+  info.heart_rate_hz = 1.25;
+  info.notes = "unit test";
+  info.metadata_json = R"({"operator": "test", "volume_rate_hz": 20})";
+  hw::RunWriter w(dir, info);
+  for (int i = 0; i < 20; ++i) {
+    const double t = 0.05 * i;
+    w.AddTarget(Target(t, i != 5));
+    w.AddLatency({t + 0.011, t + 0.011 + 0.001 * (i + 1)});
+    w.AddTruth({t, {t, 2 * t, -t}, {t + 1, 2 * t, -t}});
+    w.AddEm({500.0 + t, {t, t, t}, i != 7});
+  }
+  for (int i = 0; i < 100; ++i) {
+    w.AddServo(
+        {0.001 * i, i < 50 ? "hold" : "track", 0.1 * i, 0.05 * i, 0.09 * i, i < 80 ? 0.0 : 1.0});
+  }
+}
+
+TEST(RunRecord, WhatTheWriterWritesReadsBack) {
+  const TempDir dir("run_record");
+  WriteSmallRun(dir.path());
+  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  ASSERT_TRUE(run.info.heart_rate_hz.has_value());
+  EXPECT_EQ(*run.info.heart_rate_hz, 1.25);
+  EXPECT_EQ(run.info.notes, "unit test");
+  EXPECT_EQ(run.info.metadata_json, R"({"operator":"test","volume_rate_hz":20})");
+  ASSERT_EQ(run.targets.size(), 20u);
+  for (std::size_t i = 0; i < run.targets.size(); ++i) {
+    const hw::TargetRecord expected = Target(0.05 * static_cast<double>(i), i != 5);
+    const hw::TargetRecord& r = run.targets[i];
+    EXPECT_EQ(r.acquired_s, expected.acquired_s);  // shortest round-trip text: exact
+    EXPECT_EQ(r.published_s, expected.published_s);
+    EXPECT_EQ(r.found, expected.found);
+    if (r.found) {
+      EXPECT_EQ(r.tip_mm, expected.tip_mm);
+      EXPECT_EQ(r.target_mm, expected.target_mm);
+    } else {
+      EXPECT_EQ(r.tip_mm, Eigen::Vector3d::Zero());
+    }
+  }
+  EXPECT_TRUE(run.has_servo && run.has_latency && run.has_em && run.has_truth);
+  ASSERT_EQ(run.servo.size(), 100u);
+  EXPECT_EQ(run.servo[10].mode, "hold");
+  EXPECT_EQ(run.servo[60].mode, "track");
+  EXPECT_EQ(run.servo.back().faults, 1.0);
+  ASSERT_EQ(run.latency.size(), 20u);
+  EXPECT_EQ(run.truth.size(), 20u);
+  const hw::EmLog em = hw::ReadSimEmLog(run.EmPath(), {});
+  EXPECT_EQ(em.samples.size(), 20u);
+  EXPECT_EQ(em.dropouts(), 1u);
+  EXPECT_FALSE(em.samples[7].valid);
+}
+
+TEST(RunRecord, OptionalFilesMayBeAbsent) {
+  const TempDir dir("run_minimal");
+  {
+    hw::RunWriter w(dir.path(), {});
+    w.AddTarget(Target(0.0, true));
+    w.AddTarget(Target(0.05, true));
+  }
+  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  EXPECT_FALSE(run.info.heart_rate_hz.has_value());
+  EXPECT_FALSE(run.has_servo || run.has_latency || run.has_em || run.has_truth);
+  EXPECT_EQ(run.targets.size(), 2u);
+}
+
+TEST(RunRecord, WriterRejectsBadRows) {
+  const TempDir dir("run_writer");
+  hw::RunWriter w(dir.path(), {});
+  w.AddTarget(Target(1.0, true));
+  ExpectContains(InvalidArgumentMessage([&] { w.AddTarget(Target(1.0, true)); }),
+                 "targets.csv: time 1 s is not after the previous row's 1 s");
+  hw::TargetRecord nan = Target(2.0, true);
+  nan.tip_mm.x() = std::numeric_limits<double>::quiet_NaN();
+  ExpectContains(InvalidArgumentMessage([&] { w.AddTarget(nan); }),
+                 "column 'tip_mm': the value is not finite");
+  ExpectContains(InvalidArgumentMessage([&] {
+                   w.AddServo({0.0, "a,b", 0, 0, 0, 0});
+                 }),
+                 "column 'mode'");
+  ExpectContains(InvalidArgumentMessage([&] {
+                   w.AddLatency({1.0, 0.5});
+                 }),
+                 "applied_s is before arrived_s");
+  ExpectContains(InvalidArgumentMessage([&] { hw::RunWriter again(dir.path(), {}); }),
+                 "run.json: already exists");
+}
+
+TEST(RunRecord, BadFilesNameTheFileLineAndColumn) {
+  const TempDir dir("run_bad");
+  ExpectContains(InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); }), "no such folder");
+  WriteSmallRun(dir.path());
+  const fs::path json = dir.path() / "run.json";
+  const fs::path targets = dir.path() / "targets.csv";
+  const std::string good_json = [&] {
+    std::ifstream in(json);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  auto expect_json_error = [&](const std::string& text, const std::string& part) {
+    std::ofstream(json, std::ios::trunc) << text;
+    const std::string msg = InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); });
+    ExpectContains(msg, json.string());
+    ExpectContains(msg, part);
+  };
+  expect_json_error(R"({"format": "trial", "version": 1})",
+                    "key 'format' must be \"echoservo-run\"");
+  expect_json_error(R"({"format": "echoservo-run", "version": 2})",
+                    "key 'version': 2 is not a version");
+  expect_json_error(R"({"format": "echoservo-run", "version": 1, "heart_rate_hz": 20})",
+                    "key 'heart_rate_hz': 20 is not a number in (0, 10] Hz");
+  expect_json_error("{\"format\": ", "not valid JSON");
+  std::ofstream(json, std::ios::trunc) << good_json;
+
+  SetCsvField(targets, 4, 3, "2");
+  std::string msg = InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); });
+  ExpectContains(msg, targets.string() + ": line 4: column 'found': 2 is not 0 or 1");
+  SetCsvField(targets, 4, 3, "1");
+  SetCsvField(targets, 6, 1, "0.1");  // arrived before acquired (0.2)
+  msg = InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); });
+  ExpectContains(msg, ": line 6: column 'arrived_s': 0.1 s is before acquired_s = 0.2 s");
+  SetCsvField(targets, 6, 1, "0.211");
+  SetCsvField(targets, 7, 0, "0.2");
+  msg = InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); });
+  ExpectContains(msg, ": line 7: column 'acquired_s': times must be strictly increasing");
+  WriteLines(targets, {"acquired_s,arrived_s", "0,0"});
+  msg = InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); });
+  ExpectContains(msg, "missing required columns");
+  ExpectContains(msg, "(header: acquired_s,arrived_s,published_s,found,");
+  fs::remove(targets);
+  ExpectContains(InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); }),
+                 "targets.csv: not found");
+}
+
+// kill -9 while writing: every row added before the kill is on disk and the RUN directory
+// reads back whole (nothing lost but the row in flight; here none is in flight).
+TEST(RunWriter, AProcessKilledWhileWritingLosesNoRowAlreadyAdded) {
+  const TempDir dir("run_kill9", true);
+  const fs::path run = dir.path() / "run";
+  constexpr int kRows = 137;
+  int ready[2];
+  ASSERT_EQ(::pipe(ready), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {  // the writer: adds its rows, says so, then waits to be killed
+    ::close(ready[0]);
+    hw::RunWriter w(run, {});
+    for (int i = 0; i < kRows; ++i) {
+      const double t = 0.04 * i;
+      w.AddTarget({t, t + 0.05, t + 0.06, true, Eigen::Vector3d(1, 2, 3 + 0.01 * i),
+                   Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 0, 1), 0.9});
+      w.AddServo({t, "following", 0.1 * i, 0.2, 0.3, 0});
+      w.AddLatency({t + 0.05, t + 0.055});
+    }
+    const char byte = 1;
+    if (::write(ready[1], &byte, 1) != 1) ::_exit(2);
+    for (;;) ::pause();
+  }
+  ::close(ready[1]);
+  char byte = 0;
+  ASSERT_EQ(::read(ready[0], &byte, 1), 1);
+  ::close(ready[0]);
+  ASSERT_EQ(::kill(child, SIGKILL), 0);
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFSIGNALED(status));
+  const hw::RunRecord r = hw::ReadRunRecord(run);
+  ASSERT_EQ(r.targets.size(), static_cast<std::size_t>(kRows));
+  ASSERT_EQ(r.servo.size(), static_cast<std::size_t>(kRows));
+  ASSERT_EQ(r.latency.size(), static_cast<std::size_t>(kRows));
+  EXPECT_DOUBLE_EQ(r.targets.back().target_mm.z(), 3 + 0.01 * (kRows - 1));
+  EXPECT_DOUBLE_EQ(r.servo.back().setpoint_mm, 0.1 * (kRows - 1));
+}
+
+}  // namespace
+}  // namespace echoservo
