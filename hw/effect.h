@@ -11,6 +11,8 @@
 // Details: docs/adding_an_effect.md#1-choose-the-physics-and-the-stage-hooks
 #pragma once
 
+#include <cassert>
+#include <cstddef>
 #include <span>
 #include <string>
 #include <string_view>
@@ -68,6 +70,19 @@ class Effect {
   double DriveOffsetMm(double friction_force_n, const EffectContext& c, const double* p) const {
     return DoDriveOffsetMm(friction_force_n, c, p);
   }
+  // The two per-sample hooks over a whole trial, one virtual call per effect:
+  // out[i] += FrictionMagnitudeN(speed_mm_s[i]) and drive_mm[i] += DriveOffsetMm(force[i]).
+  // Spans of equal length (asserted).
+  void AddFrictionMagnitudesN(std::span<const double> speed_mm_s, const EffectContext& c,
+                              const double* p, std::span<double> out) const {
+    assert(speed_mm_s.size() == out.size());
+    DoAddFrictionMagnitudesN(speed_mm_s, c, p, out);
+  }
+  void AddDriveOffsetsMm(std::span<const double> friction_force_n, const EffectContext& c,
+                         const double* p, std::span<double> drive_mm) const {
+    assert(friction_force_n.size() == drive_mm.size());
+    DoAddDriveOffsetsMm(friction_force_n, c, p, drive_mm);
+  }
   // Deadzone width (mm) after this effect, from the width so far and the friction level
   // (the breakaway friction magnitude, N).
   double BacklashWidthMm(double width_mm, double friction_level_n, const EffectContext& c,
@@ -90,6 +105,18 @@ class Effect {
   virtual double DoBacklashWidthMm(double width_mm, double, const EffectContext&,
                                    const double*) const {
     return width_mm;
+  }
+  // Whole-trial hooks: by default the per-sample hook for each sample (built-in effects
+  // override both at once through BatchedEffect, hw/effects/builtin_effects.h).
+  virtual void DoAddFrictionMagnitudesN(std::span<const double> speed_mm_s, const EffectContext& c,
+                                        const double* p, std::span<double> out) const {
+    for (std::size_t i = 0; i < out.size(); ++i)
+      out[i] += DoFrictionMagnitudeN(speed_mm_s[i], c, p);
+  }
+  virtual void DoAddDriveOffsetsMm(std::span<const double> friction_force_n, const EffectContext& c,
+                                   const double* p, std::span<double> drive_mm) const {
+    for (std::size_t i = 0; i < drive_mm.size(); ++i)
+      drive_mm[i] += DoDriveOffsetMm(friction_force_n[i], c, p);
   }
   virtual double DoTraversalTimeConstantS(const double*) const { return 0.0; }
   virtual double DoSensorDelayS(const double*) const { return 0.0; }

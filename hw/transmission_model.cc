@@ -103,6 +103,27 @@ double TransmissionModel::DriveMm(double base_mm, double friction_force_n) const
   return drive;
 }
 
+void TransmissionModel::FrictionMagnitudesN(std::span<const double> speed_mm_s,
+                                            std::span<double> out) const {
+  assert(speed_mm_s.size() == out.size());
+  std::fill(out.begin(), out.end(), 0.0);
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    effects_[e]->AddFrictionMagnitudesN(speed_mm_s, context_, params_.data() + offsets_[e], out);
+  }
+  for (double& f : out) f *= friction_scale_;
+}
+
+void TransmissionModel::DrivesMm(std::span<const double> base_mm,
+                                 std::span<const double> friction_force_n,
+                                 std::span<double> drive_mm) const {
+  assert(base_mm.size() == drive_mm.size() && friction_force_n.size() == drive_mm.size());
+  std::copy(base_mm.begin(), base_mm.end(), drive_mm.begin());
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    effects_[e]->AddDriveOffsetsMm(friction_force_n, context_, params_.data() + offsets_[e],
+                                   drive_mm);
+  }
+}
+
 double TransmissionModel::StepTip(double tip_mm, double drive_mm, double dt_s) const {
   return StepTipWithFraction(tip_mm, drive_mm, TraversalFraction(dt_s));
 }

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -61,6 +62,11 @@ class TransmissionModel {
   }
   // Drive (guidewire tip-end) position for a base position and the signed friction force.
   double DriveMm(double base_mm, double friction_force_n) const;
+  // The same two over a whole trial (spans of equal length, asserted), one virtual call per
+  // effect; equal to the per-sample calls, bit for bit.
+  void FrictionMagnitudesN(std::span<const double> speed_mm_s, std::span<double> out) const;
+  void DrivesMm(std::span<const double> base_mm, std::span<const double> friction_force_n,
+                std::span<double> drive_mm) const;
   double BacklashWidthMm() const { return width_mm_; }
   double TraversalTimeConstantS() const { return tau_s_; }
   double SensorDelayS() const { return delay_s_; }

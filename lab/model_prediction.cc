@@ -24,18 +24,24 @@ void PredictTrial(const hw::TransmissionModel& model, const LabTrial& lt,
   out.force_n.resize(n);
   std::vector<double>& tip = out.tip_mm;  // true tip first, sensor applied below
 
+  // Friction at every sample's speed, then the force, then the drive, each over the whole
+  // trial (one call per effect; the tip buffer holds the speeds, then the drives).
+  for (std::size_t i = 0; i < n; ++i) tip[i] = std::abs(lt.velocity_mm_s[i]);
+  model.FrictionMagnitudesN(tip, out.force_n);
+  const double breakaway = model.FrictionLevelN();
+  for (std::size_t i = 0; i < n; ++i) {
+    const double kinetic = out.force_n[i];
+    const double band = std::max(breakaway, kinetic);
+    out.force_n[i] = lt.may_stick[i] != 0 ? std::clamp(tr.force_n[i], -band, band)
+                                          : std::copysign(kinetic, lt.velocity_mm_s[i]);
+  }
+  model.DrivesMm(tr.base_mm, out.force_n, tip);
+
   const double half = 0.5 * model.BacklashWidthMm();
   double last_dt = -1.0;
   double fraction = 1.0;
-  const double breakaway = model.FrictionLevelN();
   for (std::size_t i = 0; i < n; ++i) {
-    const double v = lt.velocity_mm_s[i];
-    const double kinetic = model.FrictionMagnitudeN(std::abs(v));
-    const double band = std::max(breakaway, kinetic);
-    const double force =
-        lt.may_stick[i] != 0 ? std::clamp(tr.force_n[i], -band, band) : std::copysign(kinetic, v);
-    out.force_n[i] = force;
-    const double drive = model.DriveMm(tr.base_mm[i], force);
+    const double drive = tip[i];
     if (i == 0) {
       tip[0] = drive + std::clamp(nuisance.contact, -1.0, 1.0) * half;
     } else {

@@ -6,12 +6,24 @@
 # Compiler: clang 14 by default (its UBSan also checks pointer overflow, vptr and function
 # types, and found a pointer overflow GCC's did not; build and suite take as long as with
 # GCC). CC=gcc CXX=g++ selects GCC 12 (use a fresh build folder, e.g. BUILD=build-asan-gcc).
+# --build-only / --test-only: one of the two phases (.ci/run starts the build early, in
+# the background, and runs the suite later). JOBS: parallel build jobs (default 2).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 source scripts/sanitizer_env.sh
+phase="${1:-all}"
+case "$phase" in all | --build-only | --test-only) ;; *)
+  echo "usage: scripts/test_sanitize.sh [--build-only|--test-only]" >&2
+  exit 2
+  ;;
+esac
 
 build="${BUILD:-build-asan}"
-CC="${CC:-clang-14}" CXX="${CXX:-clang++-14}" cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
-  -DECHOSERVO_SANITIZE=ON -DECHOSERVO_BUILD_BENCH=OFF
-cmake --build "$build" -j2
-ctest --test-dir "$build" --output-on-failure -j2
+if [[ "$phase" != --test-only ]]; then
+  CC="${CC:-clang-14}" CXX="${CXX:-clang++-14}" cmake -S . -B "$build" -G Ninja \
+    -DCMAKE_BUILD_TYPE=Release -DECHOSERVO_SANITIZE=ON -DECHOSERVO_BUILD_BENCH=OFF
+  cmake --build "$build" -j"${JOBS:-2}"
+fi
+if [[ "$phase" != --build-only ]]; then
+  ctest --test-dir "$build" --output-on-failure -j2
+fi

@@ -4,10 +4,10 @@
 namespace echoservo::hw {
 namespace {
 
-class Backlash final : public DescribedEffect {
+class Backlash final : public BatchedEffect<Backlash> {
  public:
   Backlash()
-      : DescribedEffect(
+      : BatchedEffect(
             "backlash", EffectStage::kBacklash,
             "Geometric backlash: in a bent sheath the guidewire takes the inside or the outside "
             "of each bend depending on the direction it was last pushed; switching sides "

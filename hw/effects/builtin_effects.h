@@ -1,8 +1,11 @@
 // Factories of the built-in catalog effects (one file each in hw/effects/), and the
-// small base class they share for their descriptive data.
+// small base classes they share: their descriptive data (DescribedEffect, also for user
+// effects) and their per-sample physics as whole-trial hooks (BatchedEffect).
 #pragma once
 
+#include <cstddef>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -33,6 +36,37 @@ class DescribedEffect : public Effect {
   std::string description_;
   std::string signature_;
   std::vector<ParameterSpec> parameters_;
+};
+
+// The base of every built-in effect. The per-sample physics is a static function of the
+// effect class, FrictionN(speed_mm_s, c, p) or OffsetMm(friction_force_n, c, p) (neutral
+// when the class has none); this base turns each into both the per-sample and the
+// whole-trial hook, so the two cannot disagree and a trial costs one virtual call per effect.
+template <class Self>
+class BatchedEffect : public DescribedEffect {
+ public:
+  using DescribedEffect::DescribedEffect;
+  static double FrictionN(double, const EffectContext&, const double*) { return 0.0; }
+  static double OffsetMm(double, const EffectContext&, const double*) { return 0.0; }
+
+ protected:
+  double DoFrictionMagnitudeN(double speed_mm_s, const EffectContext& c,
+                              const double* p) const final {
+    return Self::FrictionN(speed_mm_s, c, p);
+  }
+  double DoDriveOffsetMm(double friction_force_n, const EffectContext& c,
+                         const double* p) const final {
+    return Self::OffsetMm(friction_force_n, c, p);
+  }
+  void DoAddFrictionMagnitudesN(std::span<const double> speed_mm_s, const EffectContext& c,
+                                const double* p, std::span<double> out) const final {
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] += Self::FrictionN(speed_mm_s[i], c, p);
+  }
+  void DoAddDriveOffsetsMm(std::span<const double> friction_force_n, const EffectContext& c,
+                           const double* p, std::span<double> drive_mm) const final {
+    for (std::size_t i = 0; i < drive_mm.size(); ++i)
+      drive_mm[i] += Self::OffsetMm(friction_force_n[i], c, p);
+  }
 };
 
 std::unique_ptr<Effect> MakeCoulombFriction();

@@ -6,10 +6,10 @@
 namespace echoservo::hw {
 namespace {
 
-class CapstanFriction final : public DescribedEffect {
+class CapstanFriction final : public BatchedEffect<CapstanFriction> {
  public:
   CapstanFriction()
-      : DescribedEffect(
+      : BatchedEffect(
             "capstan_friction", EffectStage::kFriction,
             "Capstan (Euler-Eytelwein) amplification: a guidewire pulled around bends of total "
             "angle theta needs exp(mu*theta) times the force at the far end, so every friction "

@@ -4,10 +4,10 @@
 namespace echoservo::hw {
 namespace {
 
-class CoulombFriction final : public DescribedEffect {
+class CoulombFriction final : public BatchedEffect<CoulombFriction> {
  public:
   CoulombFriction()
-      : DescribedEffect(
+      : BatchedEffect(
             "coulomb_friction", EffectStage::kFriction,
             "Dry sliding friction between guidewire and sheath: a constant part f0 from the "
             "wall contact along the whole sheath plus Coulomb's law mu_tip*N for the normal force "
@@ -18,8 +18,8 @@ class CoulombFriction final : public DescribedEffect {
             {{"f0_n", "N", 1.0, 0.0, 10.0, "constant Coulomb friction"},
              {"mu_tip", "1", 0.3, 0.0, 2.0, "friction coefficient for the tip load"}}) {}
 
- protected:
-  double DoFrictionMagnitudeN(double, const EffectContext& c, const double* p) const override {
+  // The per-sample physics (BatchedEffect).
+  static double FrictionN(double, const EffectContext& c, const double* p) {
     return p[0] + p[1] * c.tip_load_n;
   }
 };

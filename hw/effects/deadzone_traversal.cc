@@ -4,10 +4,10 @@
 namespace echoservo::hw {
 namespace {
 
-class DeadzoneTraversal final : public DescribedEffect {
+class DeadzoneTraversal final : public BatchedEffect<DeadzoneTraversal> {
  public:
   DeadzoneTraversal()
-      : DescribedEffect(
+      : BatchedEffect(
             "deadzone_traversal", EffectStage::kTipDynamics,
             "Finite-speed deadzone traversal: the guidewire does not settle against the sheath "
             "wall instantly. When the base pushes the band the deadzone allows past the tip, "

@@ -4,10 +4,10 @@
 namespace echoservo::hw {
 namespace {
 
-class FrictionBacklash final : public DescribedEffect {
+class FrictionBacklash final : public BatchedEffect<FrictionBacklash> {
  public:
   FrictionBacklash()
-      : DescribedEffect(
+      : BatchedEffect(
             "friction_backlash", EffectStage::kBacklash,
             "Friction-dependent backlash: under friction the sheath deforms and the guidewire "
             "buckles inside it, so the deadzone widens with the friction level F (breakaway "

@@ -4,10 +4,10 @@
 namespace echoservo::hw {
 namespace {
 
-class GuidewireCompliance final : public DescribedEffect {
+class GuidewireCompliance final : public BatchedEffect<GuidewireCompliance> {
  public:
   GuidewireCompliance()
-      : DescribedEffect(
+      : BatchedEffect(
             "guidewire_compliance", EffectStage::kCompliance,
             "Axial compliance of the guidewire: it compresses and stretches like a spring of "
             "stiffness k under the friction force F it carries, so the tip end lags the base by "
@@ -17,9 +17,8 @@ class GuidewireCompliance final : public DescribedEffect {
             "reversal",
             {{"k_n_per_mm", "N/mm", 5.0, 0.05, 1000.0, "axial stiffness"}}) {}
 
- protected:
-  double DoDriveOffsetMm(double friction_force_n, const EffectContext&,
-                         const double* p) const override {
+  // The per-sample physics (BatchedEffect).
+  static double OffsetMm(double friction_force_n, const EffectContext&, const double* p) {
     return -friction_force_n / p[0];
   }
 };

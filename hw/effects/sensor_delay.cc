@@ -4,10 +4,10 @@
 namespace echoservo::hw {
 namespace {
 
-class SensorDelay final : public DescribedEffect {
+class SensorDelay final : public BatchedEffect<SensorDelay> {
  public:
   SensorDelay()
-      : DescribedEffect(
+      : BatchedEffect(
             "sensor_delay", EffectStage::kSensor,
             "Tip sensor latency: the recorded tip is the true tip d seconds earlier "
             "(filtering, transport, unsynchronised clocks): tip_meas(t) = tip(t - d).",

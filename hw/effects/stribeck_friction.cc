@@ -6,10 +6,10 @@
 namespace echoservo::hw {
 namespace {
 
-class StribeckFriction final : public DescribedEffect {
+class StribeckFriction final : public BatchedEffect<StribeckFriction> {
  public:
   StribeckFriction()
-      : DescribedEffect(
+      : BatchedEffect(
             "stribeck_friction", EffectStage::kFriction,
             "Static friction above dynamic friction (Stribeck curve): an extra force "
             "dF*exp(-(|v|/v_s)^2) that is full at rest and fades above the Stribeck speed v_s. "
@@ -19,9 +19,8 @@ class StribeckFriction final : public DescribedEffect {
             {{"delta_static_n", "N", 0.4, 0.0, 5.0, "static minus dynamic friction"},
              {"v_stribeck_mm_s", "mm/s", 3.0, 0.05, 100.0, "Stribeck speed"}}) {}
 
- protected:
-  double DoFrictionMagnitudeN(double speed_mm_s, const EffectContext&,
-                              const double* p) const override {
+  // The per-sample physics (BatchedEffect).
+  static double FrictionN(double speed_mm_s, const EffectContext&, const double* p) {
     const double r = speed_mm_s / p[1];
     return p[0] * std::exp(-r * r);
   }

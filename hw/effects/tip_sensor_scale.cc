@@ -4,16 +4,15 @@
 namespace echoservo::hw {
 namespace {
 
-class TipSensorScale final : public DescribedEffect {
+class TipSensorScale final : public BatchedEffect<TipSensorScale> {
  public:
   TipSensorScale()
-      : DescribedEffect(
-            "tip_sensor_scale", EffectStage::kSensor,
-            "Tip sensor gain error (a miscalibrated potentiometer or tracker scale): "
-            "tip_meas = s * tip.",
-            "residual proportional to tip position (largest at the extremes of travel), "
-            "amplitude of the tip trace off by a constant factor",
-            {{"scale", "1", 1.03, 0.5, 2.0, "tip sensor gain"}}) {}
+      : BatchedEffect("tip_sensor_scale", EffectStage::kSensor,
+                      "Tip sensor gain error (a miscalibrated potentiometer or tracker scale): "
+                      "tip_meas = s * tip.",
+                      "residual proportional to tip position (largest at the extremes of travel), "
+                      "amplitude of the tip trace off by a constant factor",
+                      {{"scale", "1", 1.03, 0.5, 2.0, "tip sensor gain"}}) {}
 
  protected:
   double DoSensorScale(const double* p) const override { return p[0]; }

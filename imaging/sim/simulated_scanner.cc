@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <numbers>
 #include <random>
 #include <sstream>
@@ -72,6 +73,75 @@ std::vector<float> GaussianTaps(double sigma, bool peak_one) {
   if (!peak_one)
     for (auto& v : w) v = static_cast<float>(v / sum);
   return w;
+}
+
+// Wrapped source position of every position and tap of a circular convolution along an
+// axis of `len` samples: table[pos · taps + k] = (pos + k − taps / 2) mod len.
+std::vector<std::size_t> WrappedTaps(std::size_t len, std::size_t taps) {
+  const auto signed_len = static_cast<long long>(len);
+  const auto r = static_cast<long long>(taps / 2);
+  std::vector<std::size_t> table(len * taps);
+  for (std::size_t pos = 0; pos < len; ++pos)
+    for (std::size_t k = 0; k < taps; ++k) {
+      const long long q = static_cast<long long>(pos + k) - r;
+      table[pos * taps + k] = static_cast<std::size_t>((q % signed_len + signed_len) % signed_len);
+    }
+  return table;
+}
+
+// Circular convolution of one contiguous line y = x ⊛ w, taps outermost: the interior of the
+// line reads a shifted contiguous run, only the ends go through the wrap table.
+void SmoothLine(const float* x, float* y, std::size_t len, const std::vector<float>& w,
+                const std::vector<std::size_t>& wrapped) {
+  const std::size_t taps = w.size();
+  const auto signed_len = static_cast<long long>(len);
+  std::fill_n(y, len, 0.0f);
+  for (std::size_t k = 0; k < taps; ++k) {
+    const float wk = w[k];
+    const long long shift = static_cast<long long>(k) - static_cast<long long>(taps / 2);
+    // Positions [lo, hi) read x[p + shift] without wrapping.
+    const auto lo = static_cast<std::size_t>(std::clamp(-shift, 0ll, signed_len));
+    const auto hi = static_cast<std::size_t>(
+        std::clamp(signed_len - shift, static_cast<long long>(lo), signed_len));
+    for (std::size_t p = 0; p < lo; ++p) y[p] += wk * x[wrapped[p * taps + k]];
+    const float* run = x + static_cast<std::size_t>(static_cast<long long>(lo) + shift);
+    for (std::size_t p = lo; p < hi; ++p) y[p] += wk * run[p - lo];
+    for (std::size_t p = hi; p < len; ++p) y[p] += wk * x[wrapped[p * taps + k]];
+  }
+}
+
+// One pass of a circular convolution with taps `w` along an axis of `len` samples spaced
+// `stride` apart, in a field of n = outer · len · stride floats. Each output is the sum of
+// its taps in tap order from zero (the same floats as a direct loop), with no division per
+// tap; for stride > 1 the taps run over contiguous rows of `stride` outputs.
+void SmoothWrapped(const float* in, float* out, std::size_t n, std::size_t stride, std::size_t len,
+                   const std::vector<float>& w) {
+  const std::size_t taps = w.size();
+  const std::vector<std::size_t> wrapped = WrappedTaps(len, taps);
+  if (stride == 1) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n / len, 16),
+                      [&](const tbb::blocked_range<std::size_t>& lines) {
+                        for (std::size_t l = lines.begin(); l != lines.end(); ++l)
+                          SmoothLine(in + l * len, out + l * len, len, w, wrapped);
+                      });
+    return;
+  }
+  const std::size_t grain = std::max<std::size_t>(1, (std::size_t{1} << 14) / stride);
+  // A row: the `stride` outputs of one (outer, position) pair.
+  auto smooth_rows = [&](const tbb::blocked_range<std::size_t>& rows) {
+    for (std::size_t row = rows.begin(); row != rows.end(); ++row) {
+      const std::size_t pos = row % len;
+      const float* base = in + (row - pos) * stride;
+      float* dst = out + row * stride;
+      std::fill_n(dst, stride, 0.0f);
+      for (std::size_t k = 0; k < taps; ++k) {
+        const float wk = w[k];
+        const float* src = base + wrapped[pos * taps + k] * stride;
+        for (std::size_t j = 0; j < stride; ++j) dst[j] += wk * src[j];
+      }
+    }
+  };
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n / stride, grain), smooth_rows);
 }
 
 }  // namespace
@@ -248,7 +318,15 @@ struct SimulatedScanner::Impl {
     const std::size_t na = static_cast<std::size_t>(probe.n_azimuth);
     const std::size_t ne = 2 * static_cast<std::size_t>(probe.n_elevation);
     const std::size_t n = ne * na * ns;
-    std::vector<float> re(n), im(n), tmp_re(n), tmp_im(n);
+    // Three fields of scratch, each pass overwriting one whole (no zero fill): the white
+    // field's real and imaginary parts, then each part's three passes ping-pong through the
+    // third.
+    std::unique_ptr<float[]> buf[3] = {std::make_unique_for_overwrite<float[]>(n),
+                                       std::make_unique_for_overwrite<float[]>(n),
+                                       std::make_unique_for_overwrite<float[]>(n)};
+    float* re = buf[0].get();
+    float* im = buf[1].get();
+    float* spare = buf[2].get();
     const std::uint64_t seed = SplitMix(o.seed ^ 0x5eed5eedull);
     tbb::parallel_for(std::size_t{0}, ne * na, [&](std::size_t b) {
       for (std::size_t s = 0; s < ns; ++s) {
@@ -258,46 +336,25 @@ struct SimulatedScanner::Impl {
         im[i] = static_cast<float>(h >> 32) * (2.0f / 4294967296.0f) - 1.0f;
       }
     });
-    auto smooth = [&](std::vector<float>& in, std::vector<float>& out, std::size_t stride,
-                      std::size_t len, double sigma) {
-      const std::vector<float> w = GaussianTaps(sigma, false);
-      const int r = static_cast<int>(w.size() / 2);
-      // Every sample, in blocks of 16 Ki (the 3-argument parallel_for would read a step).
-      tbb::parallel_for(
-          tbb::blocked_range<std::size_t>(0, n, std::size_t{1} << 14),
-          [&](const tbb::blocked_range<std::size_t>& range) {
-            for (std::size_t i = range.begin(); i != range.end(); ++i) {
-              const std::size_t pos = (i / stride) % len;
-              float acc = 0;
-              for (int k = -r; k <= r; ++k) {
-                const long long q = static_cast<long long>(pos) + k;
-                const long long wrapped =
-                    (q % static_cast<long long>(len) + static_cast<long long>(len)) %
-                    static_cast<long long>(len);
-                acc += w[static_cast<std::size_t>(k + r)] *
-                       in[i +
-                          static_cast<std::size_t>(wrapped - static_cast<long long>(pos)) * stride];
-              }
-              out[i] = acc;
-            }
-          });
-      in.swap(out);
-    };
-    for (auto* f : {&re, &im}) {
-      auto& t = f == &re ? tmp_re : tmp_im;
-      smooth(*f, t, 1, ns, sigma_s);
-      smooth(*f, t, ns, na, o.lateral_psf_beams);
-      smooth(*f, t, ns * na, ne, o.elevation_psf_beams);
+    const std::vector<float> axial = GaussianTaps(sigma_s, false);
+    const std::vector<float> azimuth = GaussianTaps(o.lateral_psf_beams, false);
+    const std::vector<float> elevation = GaussianTaps(o.elevation_psf_beams, false);
+    for (float** field : {&re, &im}) {
+      SmoothWrapped(*field, spare, n, 1, ns, axial);
+      SmoothWrapped(spare, *field, n, ns, na, azimuth);
+      SmoothWrapped(*field, spare, n, ns * na, ne, elevation);
+      std::swap(*field, spare);  // the smoothed part; its old buffer is free
     }
+    float* magnitude = spare;
     double sum = 0;
     for (std::size_t i = 0; i < n; ++i) {
-      tmp_re[i] = std::sqrt(re[i] * re[i] + im[i] * im[i]);
-      sum += tmp_re[i];
+      magnitude[i] = std::sqrt(re[i] * re[i] + im[i] * im[i]);
+      sum += magnitude[i];
     }
     const float scale = static_cast<float>(kSpeckleScale / (sum / static_cast<double>(n)));
     speckle.resize(n + ns);
     for (std::size_t i = 0; i < n; ++i)
-      speckle[i] = static_cast<std::uint8_t>(std::min(255.0f, std::round(tmp_re[i] * scale)));
+      speckle[i] = static_cast<std::uint8_t>(std::min(255.0f, std::round(magnitude[i] * scale)));
     for (std::size_t i = 0; i < ns; ++i) speckle[n + i] = speckle[i];
   }
 

@@ -31,6 +31,7 @@
 #include "hw/effects/builtin_effects.h"
 #include "hw/simulated_catheter.h"
 #include "hw/transmission_model.h"
+#include "tests/hw/whole_trial_hooks.h"
 #include "tests/test_util/constants.h"
 #include "tests/test_util/expect_error.h"
 
@@ -253,6 +254,14 @@ TEST(CustomEffect, ModelExposesQualifiedParametersWithDefaults) {
       InvalidArgumentMessage([&] { m.SetParameter("seal_preload_friction.mu_seal", 1.5); }),
       "seal_preload_friction.mu_seal");
   EXPECT_EQ(m.GetParameter("seal_preload_friction.preload_n"), 6.0);
+}
+
+// An effect that overrides only its per-sample hook gets whole-trial hooks that agree.
+TEST(CustomEffect, WholeTrialHooksFallBackToThePerSampleHook) {
+  TransmissionModel m(Registry(), ParseModelSpec("seed+seal_preload_friction", Registry()),
+                      CatheterConfig::SeedEvaluation());
+  m.SetParameter("seal_preload_friction.preload_n", 6.0);
+  ExpectWholeTrialHooksMatchPerSample(m);
 }
 
 TEST(CustomEffect, AddsMuTimesPreloadToThePipelineFriction) {

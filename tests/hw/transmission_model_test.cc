@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/hw/whole_trial_hooks.h"
 #include "tests/test_util/expect_error.h"
 
 namespace echoservo::hw {
@@ -191,6 +192,17 @@ TEST(TransmissionModel, FullCatalogComposesEveryStage) {
   EXPECT_EQ(m.TraversalTimeConstantS(), p("deadzone_traversal.tau_s"));
   EXPECT_EQ(m.SensorDelayS(), p("sensor_delay.delay_s"));
   EXPECT_EQ(m.SensorScale(), p("tip_sensor_scale.scale"));
+}
+
+// The lab predicts whole trials through the batched hooks; the simulator steps per sample.
+// Both must be the same model, for every catalog effect and for the seed alone.
+TEST(TransmissionModel, WholeTrialHooksEqualThePerSampleCalls) {
+  CatheterConfig g = CatheterConfig::SeedEvaluation();
+  g.tip_load_n = 2.0;
+  ExpectWholeTrialHooksMatchPerSample(FullCatalog(g));
+  ExpectWholeTrialHooksMatchPerSample(
+      TransmissionModel(Builtins(), Names{"coulomb_friction", "viscous_friction", "backlash"}, g));
+  ExpectWholeTrialHooksMatchPerSample(TransmissionModel(Builtins(), Names{}, g));
 }
 
 TEST(TransmissionModel, SetConfigRefreshesTheDerivedQuantities) {

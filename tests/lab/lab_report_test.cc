@@ -22,6 +22,7 @@
 #include "report/svg_plot.h"
 #include "tests/test_util/browser.h"
 #include "tests/test_util/cli_runner.h"
+#include "tests/test_util/shared_fixture.h"
 
 namespace echoservo {
 namespace {
@@ -32,6 +33,11 @@ using Result = echoservo::testing::RunResult;
 using echoservo::testing::ReadFile;
 using echoservo::testing::RunCli;
 using echoservo::testing::RunShell;
+using echoservo::testing::FixtureComplete;
+using echoservo::testing::LoadResult;
+using echoservo::testing::MarkFixtureComplete;
+using echoservo::testing::SaveResult;
+using echoservo::testing::SharedFixtureDir;
 using echoservo::testing::ShellQuote;
 using echoservo::testing::browser::Count;
 using echoservo::testing::browser::ExpectSelfContainedPage;
@@ -41,7 +47,7 @@ using echoservo::testing::browser::RunChromium;
 using echoservo::testing::browser::ScriptProblems;
 
 struct Page {
-  fs::path work;
+  fs::path work;  // the dataset and the report
   fs::path dataset;
   fs::path html_path;
   Result record;
@@ -51,41 +57,84 @@ struct Page {
 
 constexpr const char* kOddTrialName = "trial_odd <b>&\"'name";
 
+Page PageIn(const fs::path& work) {
+  Page page;
+  page.work = work;
+  page.dataset = work / "bench & <runs>";
+  page.html_path = work / "report.html";
+  return page;
+}
+
+// Records the small dataset (one trial renamed so that its name needs escaping) and writes
+// its report, in `work`.
+Page MakePage(const fs::path& work) {
+  Page page = PageIn(work);
+  fs::remove_all(work);
+  fs::create_directories(work);
+  page.record = RunCli("sim record --out " + ShellQuote(page.dataset.string()) +
+                       " --configs lab --trajectories sine:4:0.8 --duration 3 --effects "
+                       "seed+capstan_friction --seed 7");
+  if (page.record.rc != 0) return page;
+  std::vector<fs::path> csvs;
+  for (const auto& e : fs::directory_iterator(page.dataset)) {
+    if (e.path().extension() == ".csv") csvs.push_back(e.path());
+  }
+  std::sort(csvs.begin(), csvs.end());
+  if (!csvs.empty()) {
+    fs::path json = csvs.back();
+    json.replace_extension(".json");
+    fs::rename(csvs.back(), page.dataset / (std::string(kOddTrialName) + ".csv"));
+    fs::rename(json, page.dataset / (std::string(kOddTrialName) + ".json"));
+  }
+  page.report = RunCli("lab report " + ShellQuote(page.dataset.string()) + " --model seed --out " +
+                       ShellQuote(page.html_path.string()) + " --max-rounds 2 --json");
+  page.html = ReadFile(page.html_path);
+  return page;
+}
+
+// The shared fixture (tests/test_util/shared_fixture.h): under ctest the page is made
+// once, here, and the LabReport tests read it.
+TEST(LabReportSetup, RecordsADatasetAndWritesItsReport) {
+  const auto shared = SharedFixtureDir();
+  const fs::path work = shared ? *shared
+                               : fs::temp_directory_path() /
+                                     ("echoservo_lab_report_setup_" + std::to_string(::getpid()));
+  const Page page = MakePage(work);
+  EXPECT_EQ(page.record.rc, 0) << page.record.err;
+  EXPECT_EQ(page.report.rc, 0) << page.report.err;
+  EXPECT_FALSE(page.html.empty()) << "no report at " << page.html_path;
+  if (!shared) {
+    fs::remove_all(work);
+  } else if (!::testing::Test::HasFailure()) {
+    SaveResult(work, "record", page.record);
+    SaveResult(work, "report", page.report);
+    MarkFixtureComplete(work);
+  }
+}
+
 class LabReport : public ::testing::Test {
  protected:
+  // The shared page when ctest made it; otherwise (the binary run alone) one of its own.
   static void SetUpTestSuite() {
-    page_ = new Page;
-    page_->work =
-        fs::temp_directory_path() / ("echoservo_lab_report_" + std::to_string(::getpid()));
-    fs::remove_all(page_->work);
-    fs::create_directories(page_->work);
-    page_->dataset = page_->work / "bench & <runs>";
-    page_->record = RunCli(
-        "sim record --out " + ShellQuote(page_->dataset.string()) +
-        " --configs lab --trajectories sine:4:0.8 --duration 3 --effects seed+capstan_friction"
-        " --seed 7");
-    if (page_->record.rc != 0) return;
-    // One trial renamed so that its name needs escaping.
-    std::vector<fs::path> csvs;
-    for (const auto& e : fs::directory_iterator(page_->dataset)) {
-      if (e.path().extension() == ".csv") csvs.push_back(e.path());
+    scratch_ = new fs::path(fs::temp_directory_path() /
+                            ("echoservo_lab_report_" + std::to_string(::getpid())));
+    fs::remove_all(*scratch_);
+    fs::create_directories(*scratch_);
+    const auto shared = SharedFixtureDir();
+    if (shared && FixtureComplete(*shared)) {
+      page_ = new Page(PageIn(*shared));
+      page_->record = LoadResult(*shared, "record");
+      page_->report = LoadResult(*shared, "report");
+      page_->html = ReadFile(page_->html_path);
+    } else {
+      page_ = new Page(MakePage(*scratch_ / "page"));
     }
-    std::sort(csvs.begin(), csvs.end());
-    if (!csvs.empty()) {
-      fs::path json = csvs.back();
-      json.replace_extension(".json");
-      fs::rename(csvs.back(), page_->dataset / (std::string(kOddTrialName) + ".csv"));
-      fs::rename(json, page_->dataset / (std::string(kOddTrialName) + ".json"));
-    }
-    page_->html_path = page_->work / "report.html";
-    page_->report =
-        RunCli("lab report " + ShellQuote(page_->dataset.string()) + " --model seed --out " +
-               ShellQuote(page_->html_path.string()) + " --max-rounds 2 --json");
-    page_->html = ReadFile(page_->html_path);
   }
   static void TearDownTestSuite() {
-    fs::remove_all(page_->work);
+    fs::remove_all(*scratch_);
+    delete scratch_;
     delete page_;
+    scratch_ = nullptr;
     page_ = nullptr;
   }
   void SetUp() override {
@@ -94,6 +143,7 @@ class LabReport : public ::testing::Test {
     ASSERT_FALSE(page_->html.empty()) << "no report at " << page_->html_path;
   }
   static inline Page* page_ = nullptr;
+  static inline fs::path* scratch_ = nullptr;  // this process's own files (browser, shots)
 };
 
 TEST_F(LabReport, IsOneSelfContainedHtmlPage) {
@@ -204,8 +254,8 @@ TEST_F(LabReport, EscapesTrialNamesAndPaths) {
 TEST_F(LabReport, RendersInHeadlessChromiumWithoutScriptErrors) {
   const fs::path chromium = FindOnPath("chromium");
   ASSERT_FALSE(chromium.empty()) << kNoChromium;
-  const fs::path shot = page_->work / "shot.png";
-  const Result r = RunChromium(chromium, page_->html_path, page_->work,
+  const fs::path shot = *scratch_ / "shot.png";
+  const Result r = RunChromium(chromium, page_->html_path, *scratch_,
                                "--screenshot=" + ShellQuote(shot.string()));
   EXPECT_EQ(r.rc, 0) << r.err;
   ASSERT_TRUE(fs::is_regular_file(shot)) << r.err;
@@ -218,7 +268,7 @@ TEST_F(LabReport, RendersInHeadlessChromiumWithoutScriptErrors) {
 TEST_F(LabReport, ItsScriptRunsInChromium) {
   const fs::path chromium = FindOnPath("chromium");
   ASSERT_FALSE(chromium.empty()) << kNoChromium;
-  const Result r = RunChromium(chromium, page_->html_path, page_->work, "--dump-dom");
+  const Result r = RunChromium(chromium, page_->html_path, *scratch_, "--dump-dom");
   ASSERT_EQ(r.rc, 0) << r.err;
   for (const std::string& line : ScriptProblems(r.err))
     ADD_FAILURE() << "browser console: " << line;
