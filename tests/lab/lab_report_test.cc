@@ -30,12 +30,12 @@ namespace {
 namespace fs = std::filesystem;
 
 using Result = echoservo::testing::RunResult;
-using echoservo::testing::ReadFile;
-using echoservo::testing::RunCli;
-using echoservo::testing::RunShell;
 using echoservo::testing::FixtureComplete;
 using echoservo::testing::LoadResult;
 using echoservo::testing::MarkFixtureComplete;
+using echoservo::testing::ReadFile;
+using echoservo::testing::RunCli;
+using echoservo::testing::RunShell;
 using echoservo::testing::SaveResult;
 using echoservo::testing::SharedFixtureDir;
 using echoservo::testing::ShellQuote;
