@@ -6,8 +6,7 @@
 # Compiler: clang 14 by default (its UBSan also checks pointer overflow, vptr and function
 # types, and found a pointer overflow GCC's did not; build and suite take as long as with
 # GCC). CC=gcc CXX=g++ selects GCC 12 (use a fresh build folder, e.g. BUILD=build-asan-gcc).
-# --build-only / --test-only: one of the two phases (.ci/run starts the build early, in
-# the background, and runs the suite later). JOBS: parallel build jobs (default 2).
+# --build-only / --test-only: one of the two phases (.ci/run times them as two stages).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 source scripts/sanitizer_env.sh
@@ -22,7 +21,7 @@ build="${BUILD:-build-asan}"
 if [[ "$phase" != --test-only ]]; then
   CC="${CC:-clang-14}" CXX="${CXX:-clang++-14}" cmake -S . -B "$build" -G Ninja \
     -DCMAKE_BUILD_TYPE=Release -DECHOSERVO_SANITIZE=ON -DECHOSERVO_BUILD_BENCH=OFF
-  cmake --build "$build" -j"${JOBS:-2}"
+  cmake --build "$build" -j2
 fi
 if [[ "$phase" != --build-only ]]; then
   ctest --test-dir "$build" --output-on-failure -j2
