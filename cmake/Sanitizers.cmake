@@ -54,7 +54,6 @@ function(echoservo_sanitizer_warning_exceptions target)
   endif()
 endfunction()
 
-
 # echoservo_sanitizer_hot_sources(FILE ...): the numeric kernels that dominate the sanitizer
 # suite's run time (found with perf; docs/reliability.md "CI time") compile at -O2 in the
 # sanitizer build instead of -O1. They stay fully instrumented by ASan and UBSan; -O2 inlines
