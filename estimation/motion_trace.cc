@@ -108,7 +108,14 @@ bool Interpolate(const MotionTrace& trace, double limit, double t_s, double& out
 }  // namespace
 
 bool InterpolateTrace(const MotionTrace& trace, double t_s, double& out) {
-  return Interpolate(trace, kGapFactor * MedianInterval(trace), t_s, out);
+  return TraceInterpolator(trace).At(t_s, out);
+}
+
+TraceInterpolator::TraceInterpolator(const MotionTrace& trace)
+    : trace_(trace), gap_limit_s_(kGapFactor * MedianInterval(trace)) {}
+
+bool TraceInterpolator::At(double t_s, double& out) const {
+  return Interpolate(trace_, gap_limit_s_, t_s, out);
 }
 
 MotionTrace ResampleTrace(const MotionTrace& trace, double rate_hz) {

@@ -43,7 +43,22 @@ double MedianInterval(const MotionTrace& trace);
 std::vector<std::size_t> FindGaps(const MotionTrace& trace);
 
 // Linear interpolation at t; false (and `out` untouched) outside the trace or inside a gap.
+// Each call finds the trace's gaps again (O(n)): interpolate one trace many times with
+// TraceInterpolator.
 bool InterpolateTrace(const MotionTrace& trace, double t_s, double& out);
+
+// InterpolateTrace for many times on one trace: the gap limit (from the median sampling
+// interval) is found once. The trace must outlive the interpolator and stay unchanged.
+class TraceInterpolator {
+ public:
+  explicit TraceInterpolator(const MotionTrace& trace);
+  // As InterpolateTrace(trace, t_s, out).
+  bool At(double t_s, double& out) const;
+
+ private:
+  const MotionTrace& trace_;
+  double gap_limit_s_;
+};
 
 // Measurements at `rate_hz` (t0 + k/rate, linear interpolation), skipping times that fall
 // outside the trace or inside gaps. Throws std::invalid_argument for a rate that is not

@@ -93,6 +93,7 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
   baselines.push_back(std::make_unique<ConstantVelocityKf>(cvo));
   Accumulator ekf_acc;
   std::vector<Accumulator> base_acc(baselines.size());
+  const TraceInterpolator truth_at(reference);
   bool scoring = false;
   for (std::size_t i = 0; i < measured.size(); ++i) {
     const double t = measured.t_s[i];
@@ -107,7 +108,7 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
     const double target_t = t + o.latency_s;
     if (target_t > reference.t_s.back()) break;
     double truth = 0.0;
-    if (!InterpolateTrace(reference, target_t, truth)) {
+    if (!truth_at.At(target_t, truth)) {
       ++run.unscored_in_gaps;
       continue;
     }

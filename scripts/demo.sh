@@ -9,7 +9,8 @@
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
+CC="${CC:-clang-14}" CXX="${CXX:-clang++-14}" cmake -S . -B build -G Ninja \
+  -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j2
 
 echo

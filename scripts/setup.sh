@@ -5,7 +5,7 @@ set -euo pipefail
 
 packages=(
   g++ cmake ninja-build
-  clang-14 libclang-rt-14-dev llvm-14 clang-format-14
+  clang-14 libclang-rt-14-dev llvm-14 clang-format-14 lld
   libgtest-dev libgmock-dev libbenchmark-dev
   libeigen3-dev libceres-dev nlohmann-json3-dev libcli11-dev
   chromium

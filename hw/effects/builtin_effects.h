@@ -58,14 +58,20 @@ class BatchedEffect : public DescribedEffect {
                          const double* p) const final {
     return Self::OffsetMm(friction_force_n, c, p);
   }
+  // An effect without a friction (offset) function adds nothing to any sample: its
+  // whole-trial hook returns at once instead of adding zero to every sample.
   void DoAddFrictionMagnitudesN(std::span<const double> speed_mm_s, const EffectContext& c,
                                 const double* p, std::span<double> out) const final {
-    for (std::size_t i = 0; i < out.size(); ++i) out[i] += Self::FrictionN(speed_mm_s[i], c, p);
+    if constexpr (&Self::FrictionN != &BatchedEffect::FrictionN) {
+      for (std::size_t i = 0; i < out.size(); ++i) out[i] += Self::FrictionN(speed_mm_s[i], c, p);
+    }
   }
   void DoAddDriveOffsetsMm(std::span<const double> friction_force_n, const EffectContext& c,
                            const double* p, std::span<double> drive_mm) const final {
-    for (std::size_t i = 0; i < drive_mm.size(); ++i)
-      drive_mm[i] += Self::OffsetMm(friction_force_n[i], c, p);
+    if constexpr (&Self::OffsetMm != &BatchedEffect::OffsetMm) {
+      for (std::size_t i = 0; i < drive_mm.size(); ++i)
+        drive_mm[i] += Self::OffsetMm(friction_force_n[i], c, p);
+    }
   }
 };
 
