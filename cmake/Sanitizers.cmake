@@ -5,7 +5,7 @@
 # UBSan does not recover (-fno-sanitize-recover=all): the first report aborts the process,
 # so a test that triggers one fails. Optimisation is -O1 (overrides the build type's -O)
 # with frame pointers and line tables (-g1), for symbolised stacks at a modest slow-down
-# and compile time. System libraries (Fast DDS,
+# and compile time; hot kernels -O2, most test executables -O0 (the functions below). System libraries (Fast DDS,
 # VTK, Embree, TBB, Ceres, OpenCV) are not instrumented; ASan still checks every access
 # made from our code. Run-time options and suppressions: tests/sanitizers/.
 #
@@ -62,5 +62,19 @@ endfunction()
 function(echoservo_sanitizer_hot_sources)
   if(ECHOSERVO_SANITIZE)
     set_source_files_properties(${ARGN} PROPERTIES COMPILE_OPTIONS -O2)
+  endif()
+endfunction()
+
+# echoservo_sanitizer_test_target(TARGET): a GoogleTest executable compiles at -O0 in the
+# sanitizer build (instead of -O1), still fully instrumented. Test files are the bulk of
+# that build (assertion macros, fixtures, GoogleTest's templates) and most of them only
+# drive the libraries or start processes; -O0 halves their compile time. Not for tests that
+# compute in process (echoservo_test(... COMPUTE)): the linker keeps the test file's copy
+# of an inline function the libraries also use (the test's objects come first), so -O0
+# copies of Eigen and standard-library templates would slow the libraries' hot loops too
+# (the detector tests ran up to 2.6x longer; docs/reliability.md "CI time").
+function(echoservo_sanitizer_test_target target)
+  if(ECHOSERVO_SANITIZE)
+    target_compile_options(${target} PRIVATE -O0)
   endif()
 endfunction()
