@@ -12,8 +12,9 @@ if(ECHOSERVO_LINKER STREQUAL "")
     add_link_options(-fuse-ld=lld)
   endif()
 elseif(NOT ECHOSERVO_LINKER STREQUAL "default")
-  check_linker_flag(CXX "-fuse-ld=${ECHOSERVO_LINKER}" ECHOSERVO_LINKER_WORKS)
-  if(NOT ECHOSERVO_LINKER_WORKS)
+  # One cached result per linker name, so that changing ECHOSERVO_LINKER checks again.
+  check_linker_flag(CXX "-fuse-ld=${ECHOSERVO_LINKER}" ECHOSERVO_LINKER_${ECHOSERVO_LINKER}_WORKS)
+  if(NOT ECHOSERVO_LINKER_${ECHOSERVO_LINKER}_WORKS)
     message(FATAL_ERROR "ECHOSERVO_LINKER=${ECHOSERVO_LINKER}: the compiler cannot link with "
                         "-fuse-ld=${ECHOSERVO_LINKER}")
   endif()

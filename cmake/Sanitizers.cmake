@@ -5,9 +5,9 @@
 # UBSan does not recover (-fno-sanitize-recover=all): the first report aborts the process,
 # so a test that triggers one fails. Optimisation is -O1 (overrides the build type's -O)
 # with frame pointers and line tables (-g1), for symbolised stacks at a modest slow-down
-# and compile time; hot kernels -O2, most test executables -O0 (the functions below). System libraries (Fast DDS,
-# VTK, Embree, TBB, Ceres, OpenCV) are not instrumented; ASan still checks every access
-# made from our code. Run-time options and suppressions: tests/sanitizers/.
+# and compile time; hot kernels -O2, most test executables -O0 (the functions below).
+# System libraries (Fast DDS, VTK, Embree, TBB, Ceres, OpenCV) are not instrumented; ASan
+# still checks every access made from our code. Run-time options and suppressions: tests/sanitizers/.
 #
 # ECHOSERVO_FUZZ: libFuzzer targets (tests/fuzz, build/bin/fuzz_*) with clang. The
 # project's code is compiled with -fsanitize=fuzzer-no-link (coverage) plus ASan and UBSan;

@@ -8,9 +8,9 @@
 # figures. Install the packages first: bash scripts/setup.sh
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
+source scripts/lib/compiler.sh
 
-CC="${CC:-clang-14}" CXX="${CXX:-clang++-14}" cmake -S . -B build -G Ninja \
-  -DCMAKE_BUILD_TYPE=Release
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j2
 
 echo

@@ -9,6 +9,7 @@
 # documented 10^6-execution run: docs/reliability.md "Sanitizers and fuzzing".
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
+source scripts/lib/compiler.sh
 source scripts/sanitizer_env.sh
 # The targets write each input to a scratch file: keep those in memory when possible.
 if [ -z "${TMPDIR:-}" ] && [ -d /dev/shm ] && [ -w /dev/shm ]; then export TMPDIR=/dev/shm; fi
@@ -20,7 +21,7 @@ if [ "${#targets[@]}" -eq 0 ]; then
   targets=(igtl_message plus_sequence volume_io em_log trial_io dds_samples)
 fi
 
-CC="${CC:-clang-14}" CXX="${CXX:-clang++-14}" cmake -S . -B build-fuzz -G Ninja \
+cmake -S . -B build-fuzz -G Ninja \
   -DCMAKE_BUILD_TYPE=Release -DECHOSERVO_FUZZ=ON -DECHOSERVO_BUILD_TESTS=OFF \
   -DECHOSERVO_BUILD_BENCH=OFF
 cmake --build build-fuzz -j2 --target fuzz_all

@@ -9,6 +9,7 @@
 # --build-only / --test-only: one of the two phases (.ci/run times them as two stages).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
+source scripts/lib/compiler.sh
 source scripts/sanitizer_env.sh
 phase="${1:-all}"
 case "$phase" in all | --build-only | --test-only) ;; *)
@@ -19,7 +20,7 @@ esac
 
 build="${BUILD:-build-asan}"
 if [[ "$phase" != --test-only ]]; then
-  CC="${CC:-clang-14}" CXX="${CXX:-clang++-14}" cmake -S . -B "$build" -G Ninja \
+  cmake -S . -B "$build" -G Ninja \
     -DCMAKE_BUILD_TYPE=Release -DECHOSERVO_SANITIZE=ON -DECHOSERVO_BUILD_BENCH=OFF
   cmake --build "$build" -j2
 fi
