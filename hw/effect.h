@@ -6,6 +6,10 @@
 // stateless: parameters arrive as a block of doubles (`p`, laid out as parameters()) and all
 // state lives in the model, so the simulator and the model lab share one implementation.
 // Units: mm, s, N, rad. Positive base motion pushes the guidewire towards the tip.
+// Signal hooks (SignalFrictionN, ForceN, SensorOffsetMm) also see where the base is, how
+// fast it moves and accelerates and how long the trial has run (SampleSignals); an effect
+// that overrides one says so with UsesSignals(), and the model skips the signal paths
+// entirely when no effect does (the built-in effects use none).
 // Extension: derive, override the protected Do* hooks, describe the parameters, register a
 // factory.
 // Details: docs/adding_an_effect.md#1-choose-the-physics-and-the-stage-hooks
@@ -41,6 +45,28 @@ struct EffectContext {
   double gap_mm = 0.0;          // D_sheath − D_guidewire
   double tip_load_n = 0.0;      // normal force near the tip
   static EffectContext From(const CatheterConfig& config);
+};
+
+// What a signal hook sees of one sample besides the geometry. time_s counts from the
+// trial's first sample (lab) or the simulation's last reset (simulated catheter).
+struct SampleSignals {
+  double time_s = 0.0;
+  double base_mm = 0.0;
+  double velocity_mm_s = 0.0;  // signed
+  double acceleration_mm_s2 = 0.0;
+};
+
+// The same over a whole trial: spans of equal length (checked by the users, asserted).
+struct TrialSignals {
+  std::span<const double> time_s, base_mm, velocity_mm_s, acceleration_mm_s2;
+  std::size_t size() const { return time_s.size(); }
+  bool Consistent() const {
+    return base_mm.size() == size() && velocity_mm_s.size() == size() &&
+           acceleration_mm_s2.size() == size();
+  }
+  SampleSignals At(std::size_t i) const {
+    return {time_s[i], base_mm[i], velocity_mm_s[i], acceleration_mm_s2[i]};
+  }
 };
 
 class Effect {
@@ -95,6 +121,45 @@ class Effect {
   double SensorDelayS(const double* p) const { return DoSensorDelayS(p); }
   double SensorScale(const double* p) const { return DoSensorScale(p); }
 
+  // Whether the effect overrides a signal hook below (false: they are all neutral and the
+  // model never calls them).
+  bool UsesSignals() const { return DoUsesSignals(); }
+  // Extra friction magnitude (N, >= 0) at base speed |v| (mm/s) that may depend on the
+  // signals; added to FrictionMagnitudeN's sum before the friction scale.
+  double SignalFrictionN(double speed_mm_s, const SampleSignals& s, const EffectContext& c,
+                         const double* p) const {
+    return DoSignalFrictionN(speed_mm_s, s, c, p);
+  }
+  // Multiplier (>= 0) of the whole friction magnitude (plain and signal friction, after
+  // FrictionScale) that may depend on the signals: friction that grows as a trial runs.
+  double SignalFrictionScale(const SampleSignals& s, const EffectContext& c,
+                             const double* p) const {
+    return DoSignalFrictionScale(s, c, p);
+  }
+  // A signed force (N, positive along +base) the base must overcome besides friction and
+  // that the force sensor reads with it (guidewire inertia m·a, a spring k·x). It takes no
+  // part in stick/slip.
+  double ForceN(const SampleSignals& s, const EffectContext& c, const double* p) const {
+    return DoForceN(s, c, p);
+  }
+  // Offset (mm) added to the tip sensor's reading of the (delayed) tip position tip_mm.
+  double SensorOffsetMm(double tip_mm, const SampleSignals& s, const EffectContext& c,
+                        const double* p) const {
+    return DoSensorOffsetMm(tip_mm, s, c, p);
+  }
+  // Whole-trial forms: out[i] += SignalFrictionN(speed_mm_s[i], s.At(i)) and
+  // force_n[i] += ForceN(s.At(i)). Spans of equal length (asserted).
+  void AddSignalFrictionsN(std::span<const double> speed_mm_s, const TrialSignals& s,
+                           const EffectContext& c, const double* p, std::span<double> out) const {
+    assert(speed_mm_s.size() == out.size() && s.size() == out.size() && s.Consistent());
+    DoAddSignalFrictionsN(speed_mm_s, s, c, p, out);
+  }
+  void AddForcesN(const TrialSignals& s, const EffectContext& c, const double* p,
+                  std::span<double> force_n) const {
+    assert(s.size() == force_n.size() && s.Consistent());
+    DoAddForcesN(s, c, p, force_n);
+  }
+
  protected:
   Effect() = default;
   virtual double DoFrictionMagnitudeN(double, const EffectContext&, const double*) const {
@@ -121,6 +186,32 @@ class Effect {
   virtual double DoTraversalTimeConstantS(const double*) const { return 0.0; }
   virtual double DoSensorDelayS(const double*) const { return 0.0; }
   virtual double DoSensorScale(const double*) const { return 1.0; }
+  virtual bool DoUsesSignals() const { return false; }
+  virtual double DoSignalFrictionN(double, const SampleSignals&, const EffectContext&,
+                                   const double*) const {
+    return 0.0;
+  }
+  virtual double DoSignalFrictionScale(const SampleSignals&, const EffectContext&,
+                                       const double*) const {
+    return 1.0;
+  }
+  virtual double DoForceN(const SampleSignals&, const EffectContext&, const double*) const {
+    return 0.0;
+  }
+  virtual double DoSensorOffsetMm(double, const SampleSignals&, const EffectContext&,
+                                  const double*) const {
+    return 0.0;
+  }
+  virtual void DoAddSignalFrictionsN(std::span<const double> speed_mm_s, const TrialSignals& s,
+                                     const EffectContext& c, const double* p,
+                                     std::span<double> out) const {
+    for (std::size_t i = 0; i < out.size(); ++i)
+      out[i] += DoSignalFrictionN(speed_mm_s[i], s.At(i), c, p);
+  }
+  virtual void DoAddForcesN(const TrialSignals& s, const EffectContext& c, const double* p,
+                            std::span<double> force_n) const {
+    for (std::size_t i = 0; i < force_n.size(); ++i) force_n[i] += DoForceN(s.At(i), c, p);
+  }
 };
 
 }  // namespace echoservo::hw

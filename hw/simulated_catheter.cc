@@ -9,13 +9,9 @@ namespace {
 
 constexpr double kMmPerM = 1000.0;  // F/m in N/kg = m/s², ×1000 for mm/s²
 
-EffectRegistry& Registry() {
-  static EffectRegistry registry = EffectRegistry::WithBuiltinEffects();
-  return registry;
-}
-
 TransmissionModel MakeModel(const PlantOptions& o) {
-  TransmissionModel model(o.registry != nullptr ? *o.registry : Registry(), o.effects, o.config);
+  TransmissionModel model(o.registry != nullptr ? *o.registry : DefaultEffectRegistry(), o.effects,
+                          o.config);
   for (const auto& [name, value] : o.parameters) model.SetParameter(name, value);
   return model;
 }
@@ -95,13 +91,19 @@ double SimulatedCatheter::Quantise(double v, double q) const {
 void SimulatedCatheter::DoRead(double, double) {
   const SensorParams& s = options_.sensors;
   const double noise = options_.sensor_noise ? 1.0 : 0.0;
-  const double tip_true = model_.SensorScale() * DelayedTip(model_.SensorDelayS());
+  const double delayed = DelayedTip(model_.SensorDelayS());
+  double tip_true = model_.SensorScale() * delayed;
+  double force_true = truth_.friction_force_n;
+  if (model_.UsesSignals()) {
+    tip_true += model_.SensorOffsetMm(delayed, Signals());
+    force_true += truth_.extra_force_n;
+  }
   set_state(s_base_, Quantise(truth_.base_mm, s.base_quantum_mm));
   set_state(s_vel_, truth_.base_velocity_mm_s);
   set_state(s_current_, current_a_);
   set_state(s_force_, current_a_ * options_.actuator.force_constant_n_per_a);
-  set_state(s_sensor_, Quantise(truth_.friction_force_n + noise * s.force_noise_n * normal_(rng_),
-                                s.force_quantum_n));
+  set_state(s_sensor_,
+            Quantise(force_true + noise * s.force_noise_n * normal_(rng_), s.force_quantum_n));
   set_state(s_tip_, Quantise(tip_true + noise * s.tip_noise_mm * normal_(rng_), s.tip_quantum_mm));
   set_state(s_fault_, faults_);
 }
@@ -127,8 +129,13 @@ void SimulatedCatheter::Substep(double h, double current_cmd_a) {
   if (truth_.base_mm > half) applied_n -= a.end_stop_stiffness_n_per_mm * (truth_.base_mm - half);
   if (truth_.base_mm < -half) applied_n -= a.end_stop_stiffness_n_per_mm * (truth_.base_mm + half);
 
+  if (model_.UsesSignals()) {
+    SubstepWithSignals(h, applied_n);
+    return;
+  }
   PlantTruth& s = truth_;
   const double accel_per_n = kMmPerM / a.moving_mass_kg;  // mm/s² per N
+  const double v_before = s.base_velocity_mm_s;
   if (s.stuck) {
     const double breakaway = model_.FrictionLevelN();
     if (std::abs(applied_n) <= breakaway) {
@@ -150,6 +157,51 @@ void SimulatedCatheter::Substep(double h, double current_cmd_a) {
       s.base_velocity_mm_s = v_next;
     }
   }
+  s.acceleration_mm_s2 = (s.base_velocity_mm_s - v_before) / h;
+  s.time_s += h;
+  s.base_mm += h * s.base_velocity_mm_s;
+  s.drive_mm = model_.DriveMm(s.base_mm, s.friction_force_n);
+  const double tip_before = s.tip_mm;
+  s.tip_mm = model_.StepTip(s.tip_mm, s.drive_mm, h);
+  RecordTip(tip_before, s.tip_mm, h);
+}
+
+SampleSignals SimulatedCatheter::Signals() const {
+  return {truth_.time_s, truth_.base_mm, truth_.base_velocity_mm_s, truth_.acceleration_mm_s2};
+}
+
+// Substep's mechanics with the effects' signal hooks: the extra force opposes the drive
+// like a load (it is not friction, so it does not stick), breakaway and kinetic friction
+// include the signal friction at this sample.
+void SimulatedCatheter::SubstepWithSignals(double h, double applied_n) {
+  PlantTruth& s = truth_;
+  const double accel_per_n = kMmPerM / options_.actuator.moving_mass_kg;  // mm/s² per N
+  const SampleSignals signals = Signals();
+  const double v = s.base_velocity_mm_s;
+  s.extra_force_n = model_.ForceN(signals);
+  const double net_n = applied_n - s.extra_force_n;
+  if (s.stuck) {
+    const double breakaway = model_.BreakawayN(signals);
+    if (std::abs(net_n) <= breakaway) {
+      s.friction_force_n = net_n;
+      s.base_velocity_mm_s = 0.0;
+    } else {
+      s.stuck = false;
+      s.friction_force_n = std::copysign(breakaway, net_n);
+      s.base_velocity_mm_s += h * (net_n - s.friction_force_n) * accel_per_n;
+    }
+  } else {
+    s.friction_force_n = std::copysign(model_.FrictionMagnitudeN(std::abs(v), signals), v);
+    const double v_next = v + h * (net_n - s.friction_force_n) * accel_per_n;
+    if (v != 0.0 && v_next * v <= 0.0) {
+      s.base_velocity_mm_s = 0.0;
+      s.stuck = true;
+    } else {
+      s.base_velocity_mm_s = v_next;
+    }
+  }
+  s.acceleration_mm_s2 = (s.base_velocity_mm_s - v) / h;
+  s.time_s += h;
   s.base_mm += h * s.base_velocity_mm_s;
   s.drive_mm = model_.DriveMm(s.base_mm, s.friction_force_n);
   const double tip_before = s.tip_mm;

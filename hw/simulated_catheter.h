@@ -4,7 +4,11 @@
 // Mechanics: a voice coil (force constant × amplifier current, current limited, first-
 // order current loop) moves a slide of mass m over ±travel/2 with end stops; the slide
 // pushes the guidewire, whose friction (from the TransmissionModel, with stick-slip at
-// the breakaway level) opposes the slide and is what the force sensor reads. The tip
+// the breakaway level) opposes the slide and is what the force sensor reads. Effects with
+// signal hooks (hw/effect.h) see the time since ResetTo, the slide's position, velocity
+// and acceleration (of the last substep): their extra force (TransmissionModel::ForceN)
+// also opposes the drive and is read by the force sensor, their signal friction adds to
+// the friction and breakaway, their sensor offset to the tip reading. The tip
 // follows the drive position through the deadzone of the model. Sensors add Gaussian
 // noise and quantisation. Units: mm, mm/s, N, A, s. Base position 0 is mid-travel.
 //
@@ -50,8 +54,9 @@ struct PlantOptions {
   ActuatorParams actuator;
   SensorParams sensors;
   int substeps = 10;  // physics steps per write(t, dt)
-  // Where effect names are looked up; null: the built-in catalog. A registry with a
-  // user's own effects must outlive the plant's construction.
+  // Where effect names are looked up; null: DefaultEffectRegistry() (the built-in catalog
+  // unless a program installed its own). A registry with a user's own effects must outlive
+  // the plant's construction.
   const EffectRegistry* registry = nullptr;
   std::uint64_t seed = 1;
   bool sensor_noise = true;
@@ -64,6 +69,9 @@ struct PlantTruth {
   double drive_mm = 0.0;
   double tip_mm = 0.0;
   double friction_force_n = 0.0;
+  double extra_force_n = 0.0;       // the effects' signal force (ForceN), 0 without one
+  double acceleration_mm_s2 = 0.0;  // of the last substep
+  double time_s = 0.0;              // since ResetTo
   bool stuck = true;
 };
 
@@ -86,6 +94,8 @@ class SimulatedCatheter final : public HardwareInterface {
 
  private:
   void Substep(double h_s, double current_cmd_a);
+  void SubstepWithSignals(double h_s, double applied_n);
+  SampleSignals Signals() const;
   double Quantise(double v, double q) const;
   // The tip history is sampled every history_period_s_ of simulated time whatever the
   // substep h (write() may be called with any dt): RecordTip resamples the tip between

@@ -22,6 +22,7 @@ TransmissionModel::TransmissionModel(const EffectRegistry& registry,
       params_.push_back(spec.default_value);
     }
   }
+  for (const auto& e : effects_) uses_signals_ = uses_signals_ || e->UsesSignals();
   context_ = EffectContext::From(config_);
   Refresh();
 }
@@ -122,6 +123,104 @@ void TransmissionModel::DrivesMm(std::span<const double> base_mm,
     effects_[e]->AddDriveOffsetsMm(friction_force_n, context_, params_.data() + offsets_[e],
                                    drive_mm);
   }
+}
+
+double TransmissionModel::FrictionMagnitudeN(double speed_mm_s, const SampleSignals& s) const {
+  if (!uses_signals_) return FrictionMagnitudeN(speed_mm_s);
+  double sum = 0.0;
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    const double* p = params_.data() + offsets_[e];
+    sum += effects_[e]->FrictionMagnitudeN(speed_mm_s, context_, p);
+    if (effects_[e]->UsesSignals()) sum += effects_[e]->SignalFrictionN(speed_mm_s, s, context_, p);
+  }
+  return sum * friction_scale_ * SignalFrictionScale(s);
+}
+
+double TransmissionModel::SignalFrictionScale(const SampleSignals& s) const {
+  double scale = 1.0;
+  if (!uses_signals_) return scale;
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    if (effects_[e]->UsesSignals())
+      scale *= effects_[e]->SignalFrictionScale(s, context_, params_.data() + offsets_[e]);
+  }
+  return scale;
+}
+
+double TransmissionModel::BreakawayN(const SampleSignals& s) const {
+  if (!uses_signals_) return friction_level_n_;
+  double sum = 0.0;
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    if (effects_[e]->UsesSignals())
+      sum += effects_[e]->SignalFrictionN(0.0, s, context_, params_.data() + offsets_[e]);
+  }
+  return (friction_level_n_ + sum * friction_scale_) * SignalFrictionScale(s);
+}
+
+double TransmissionModel::ForceN(const SampleSignals& s) const {
+  double sum = 0.0;
+  if (!uses_signals_) return sum;
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    if (effects_[e]->UsesSignals())
+      sum += effects_[e]->ForceN(s, context_, params_.data() + offsets_[e]);
+  }
+  return sum;
+}
+
+double TransmissionModel::SensorOffsetMm(double tip_mm, const SampleSignals& s) const {
+  double sum = 0.0;
+  if (!uses_signals_) return sum;
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    if (effects_[e]->UsesSignals())
+      sum += effects_[e]->SensorOffsetMm(tip_mm, s, context_, params_.data() + offsets_[e]);
+  }
+  return sum;
+}
+
+void TransmissionModel::FrictionMagnitudesN(std::span<const double> speed_mm_s,
+                                            const TrialSignals& s, std::span<double> out) const {
+  assert(speed_mm_s.size() == out.size() && s.size() == out.size() && s.Consistent());
+  if (!uses_signals_) return FrictionMagnitudesN(speed_mm_s, out);
+  std::fill(out.begin(), out.end(), 0.0);
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    const double* p = params_.data() + offsets_[e];
+    effects_[e]->AddFrictionMagnitudesN(speed_mm_s, context_, p, out);
+    if (effects_[e]->UsesSignals())
+      effects_[e]->AddSignalFrictionsN(speed_mm_s, s, context_, p, out);
+  }
+  for (std::size_t i = 0; i < out.size(); ++i)
+    out[i] *= friction_scale_ * SignalFrictionScale(s.At(i));
+}
+
+void TransmissionModel::BreakawaysN(const TrialSignals& s, std::span<double> out) const {
+  assert(s.size() == out.size() && s.Consistent());
+  std::fill(out.begin(), out.end(), 0.0);
+  if (uses_signals_) {
+    // Signal friction at rest: the speeds are all zero.
+    const std::vector<double> rest(out.size(), 0.0);
+    for (std::size_t e = 0; e < effects_.size(); ++e) {
+      if (effects_[e]->UsesSignals())
+        effects_[e]->AddSignalFrictionsN(rest, s, context_, params_.data() + offsets_[e], out);
+    }
+  }
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i] = friction_level_n_ + out[i] * friction_scale_;
+    if (uses_signals_) out[i] *= SignalFrictionScale(s.At(i));
+  }
+}
+
+void TransmissionModel::AddForcesN(const TrialSignals& s, std::span<double> force_n) const {
+  assert(s.size() == force_n.size() && s.Consistent());
+  if (!uses_signals_) return;
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    if (effects_[e]->UsesSignals())
+      effects_[e]->AddForcesN(s, context_, params_.data() + offsets_[e], force_n);
+  }
+}
+
+void TransmissionModel::AddSensorOffsetsMm(std::span<double> tip_mm, const TrialSignals& s) const {
+  assert(s.size() == tip_mm.size() && s.Consistent());
+  if (!uses_signals_) return;
+  for (std::size_t i = 0; i < tip_mm.size(); ++i) tip_mm[i] += SensorOffsetMm(tip_mm[i], s.At(i));
 }
 
 double TransmissionModel::StepTip(double tip_mm, double drive_mm, double dt_s) const {

@@ -5,6 +5,10 @@
 // "<effect>.<parameter>"), and the catheter geometry, and evaluates the pipeline
 //   friction magnitude(|v|) → drive = base + offsets(F) → deadzone width → tip update
 //   → tip sensor (delay, gain).
+// Effects with signal hooks (hw/effect.h: UsesSignals) add, per sample, friction that
+// depends on the signals, a signed extra force (ForceN) and a sensor offset; the
+// functions taking SampleSignals/TrialSignals include them, the others never call them,
+// and with no such effect the signal forms equal the plain ones.
 // Units: mm, s, N. Positions are along the catheter axis in the base frame.
 #pragma once
 
@@ -67,6 +71,27 @@ class TransmissionModel {
   void FrictionMagnitudesN(std::span<const double> speed_mm_s, std::span<double> out) const;
   void DrivesMm(std::span<const double> base_mm, std::span<const double> friction_force_n,
                 std::span<double> drive_mm) const;
+  // Signal forms (hw/effect.h). FrictionMagnitudeN(speed, s): plain plus signal friction,
+  // scaled. BreakawayN(s): FrictionLevelN() + scaled signal friction at speed 0. ForceN:
+  // the sum of the effects' signed forces. SensorOffsetMm: the sum of the sensor offsets
+  // at the delayed tip position `tip_mm`. All equal the plain forms (0 for ForceN and
+  // SensorOffsetMm) when no effect uses signals.
+  bool UsesSignals() const { return uses_signals_; }
+  double FrictionMagnitudeN(double speed_mm_s, const SampleSignals& s) const;
+  double BreakawayN(const SampleSignals& s) const;
+  // Product of the effects' signal friction scales at `s` (1 without signal effects).
+  double SignalFrictionScale(const SampleSignals& s) const;
+  double ForceN(const SampleSignals& s) const;
+  double SensorOffsetMm(double tip_mm, const SampleSignals& s) const;
+  // Whole-trial signal forms (spans of the signals' length, asserted): out[i] =
+  // FrictionMagnitudeN(speed[i], s.At(i)), out[i] = BreakawayN(s.At(i)), force[i] +=
+  // ForceN(s.At(i)) and tip[i] += SensorOffsetMm(tip[i], s.At(i)).
+  void FrictionMagnitudesN(std::span<const double> speed_mm_s, const TrialSignals& s,
+                           std::span<double> out) const;
+  void BreakawaysN(const TrialSignals& s, std::span<double> out) const;
+  void AddForcesN(const TrialSignals& s, std::span<double> force_n) const;
+  void AddSensorOffsetsMm(std::span<double> tip_mm, const TrialSignals& s) const;
+
   double BacklashWidthMm() const { return width_mm_; }
   double TraversalTimeConstantS() const { return tau_s_; }
   double SensorDelayS() const { return delay_s_; }
@@ -102,6 +127,7 @@ class TransmissionModel {
   double tau_s_ = 0.0;
   double delay_s_ = 0.0;
   double scale_ = 1.0;
+  bool uses_signals_ = false;
 };
 
 }  // namespace echoservo::hw

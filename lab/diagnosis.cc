@@ -9,25 +9,14 @@
 
 #include "hw/effect_registry.h"
 #include "lab/candidate_ranking.h"
+#include "lab/catheter_where.h"
+#include "lab/effect_discovery.h"
 
 namespace echoservo::lab {
 namespace {
 
 std::string Percent(double fraction) { return PercentText(fraction); }
 std::string Num(double v, int decimals) { return FixedText(v, decimals); }
-
-// Starting values for SPEC+effect: the model's fitted values where shared.
-std::vector<double> StartFrom(const FitResult& base, const std::vector<std::string>& effects,
-                              const LabDataset& ds, const FitOptions& o) {
-  hw::TransmissionModel m(FitCatalog(o), effects, ds.trials.front().trial.config);
-  std::vector<double> start = m.parameters();
-  for (std::size_t i = 0; i < m.parameter_info().size(); ++i) {
-    for (const ParameterEstimate& e : base.estimates) {
-      if (e.name == m.parameter_info()[i].qualified_name) start[i] = e.value;
-    }
-  }
-  return start;
-}
 
 double Pearson(const std::vector<double>& x, const std::vector<double>& y) {
   const auto n = static_cast<double>(x.size());
@@ -109,23 +98,82 @@ std::vector<std::string> Concentration(const Diagnosis& d, const LabDataset& ds,
 
 }  // namespace
 
-CrossValidation CrossValidate(const std::vector<std::string>& effects, const LabDataset& ds,
-                              const FitOptions& o, int folds, const std::vector<double>* initial) {
-  if (ds.trials.size() < 2 || folds < 2) {  // no trial to hold out: in-sample (documented)
-    const FitResult r = FitModel(effects, ds, o, {}, initial);
-    return {r.tip_mse_norm, r.force_mse_norm};
+std::vector<double> StartingValues(const FitResult& base, const std::vector<std::string>& effects,
+                                   const LabDataset& ds, const FitOptions& o) {
+  hw::TransmissionModel m(FitCatalog(o), effects, ds.trials.front().trial.config);
+  std::vector<double> start = m.parameters();
+  for (std::size_t i = 0; i < m.parameter_info().size(); ++i) {
+    for (const ParameterEstimate& e : base.estimates) {
+      if (e.name == m.parameter_info()[i].qualified_name) start[i] = e.value;
+    }
   }
+  return start;
+}
+
+CrossValidation CrossValidate(const std::vector<std::string>& effects, const LabDataset& ds,
+                              const FitOptions& o, int folds, const std::vector<double>* initial,
+                              bool keep_predictions) {
+  CrossValidation cv;
+  if (ds.trials.size() < 2 || folds < 2) {  // no trial to hold out: in-sample (documented)
+    FitResult r = FitModel(effects, ds, o, {}, initial);
+    cv.tip_mse = r.tip_mse_norm;
+    cv.force_mse = r.force_mse_norm;
+    if (keep_predictions) {
+      for (TrialResult& t : r.trials) cv.held_out.push_back(std::move(t.prediction));
+    }
+    return cv;
+  }
+  if (keep_predictions) cv.held_out.resize(ds.trials.size());
   const std::vector<double> mse = CrossValidateFolds(
       ds.trials.size(), folds,
       [&](const std::vector<std::size_t>& train, const std::vector<std::size_t>& test) {
         const FitResult fit = FitModel(effects, ds, o, train, initial);
-        const FitResult held = EvaluateModel(effects, fit.parameters, ds, o, test);
+        FitResult held = EvaluateModel(effects, fit.parameters, ds, o, test);
         double m = 0.0;
         for (std::size_t i : test) m += static_cast<double>(ds.trials[i].fit_index.size());
+        if (keep_predictions) {
+          for (std::size_t k = 0; k < test.size(); ++k)
+            cv.held_out[test[k]] = std::move(held.trials[k].prediction);
+        }
         return FoldScore{{held.tip_mse_norm, held.force_mse_norm}, m};
       });
-  return {mse[0], mse[1]};
+  cv.tip_mse = mse[0];
+  cv.force_mse = mse[1];
+  return cv;
 }
+
+namespace {
+
+// Held-out RMS of a channel (mm or N) from its score in noise variances.
+double HeldOutRms(double mse, double noise) { return std::sqrt(std::max(mse, 0.0)) * noise; }
+
+std::string ChannelWords(const Diagnosis& d, const LabDataset& ds, bool tip) {
+  const double mse = tip ? d.base_cv.tip_mse : d.base_cv.force_mse;
+  const double noise = tip ? ds.noise.tip_mm : ds.noise.force_n;
+  const char* unit = tip ? " mm" : " N";
+  return std::string(tip ? "tip" : "force") + " held-out RMS " + Num(HeldOutRms(mse, noise), 4) +
+         unit + " against noise " + Num(noise, 4) + unit + " (" +
+         Num(std::sqrt(std::max(mse, 0.0)), 1) + "x)";
+}
+
+// "force: acceleration_mm_s2 explains 83% of the excess" for the top variable of a channel.
+std::string WhereWords(const std::vector<WhereEntry>& where, const std::string& channel) {
+  for (const WhereEntry& e : where) {
+    if (e.channel == channel) {
+      return channel + " residual varies most with " + e.variable + " (explains " +
+             Percent(e.explained_fraction) + " of its held-out excess)";
+    }
+  }
+  return "";
+}
+
+double TopGain(const std::vector<WhereEntry>& where, const std::string& channel) {
+  for (const WhereEntry& e : where)
+    if (e.channel == channel) return e.gain;
+  return 0.0;
+}
+
+}  // namespace
 
 Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
                    const DiagnoseOptions& o) {
@@ -133,22 +181,40 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
   Diagnosis d;
   d.model = model;
   d.base = FitModel(model, ds, o.fit);
-  d.base_cv = CrossValidate(model, ds, o.fit, o.folds, &d.base.parameters);
+  d.base_cv = CrossValidate(model, ds, o.fit, o.folds, &d.base.parameters, true);
   d.breakdown = ComputeBreakdown(ds, d.base);
+  d.tip_excess = d.base_cv.tip_mse - 1.0;
+  d.force_excess = d.base_cv.force_mse - 1.0;
+  const ResidualTable residuals = BuildResidualTable(ds, d.base_cv.held_out, o.folds);
+  d.where = LocateResidual(residuals, d.tip_excess, d.force_excess);
 
+  // Candidates: every catalog effect not in the model is added; with `swappable`, each of
+  // those effects may also be replaced by one.
+  struct Change {
+    std::string effect;
+    std::string replaces;
+  };
+  std::vector<Change> changes;
   std::vector<std::string> names = o.candidates;
   if (names.empty()) {
     for (const std::string& e : catalog.Names()) {
       if (std::find(model.begin(), model.end(), e) == model.end()) names.push_back(e);
     }
   }
-  auto evaluate = [&](const std::string& effect) {
+  for (const std::string& e : names) changes.push_back({e, ""});
+  for (const std::string& r : o.swappable) {
+    if (std::find(model.begin(), model.end(), r) == model.end()) continue;
+    for (const std::string& e : names) changes.push_back({e, r});
+  }
+  auto evaluate = [&](const Change& change) {
     Candidate c;
-    c.effect = effect;
+    c.effect = change.effect;
+    c.replaces = change.replaces;
     std::vector<std::string> effects = model;
-    effects.push_back(effect);
+    std::erase(effects, change.replaces);
+    effects.push_back(change.effect);
     effects = hw::ParseModelSpec(hw::FormatModelSpec(effects), catalog);  // pipeline order
-    const std::vector<double> start = StartFrom(d.base, effects, ds, o.fit);
+    const std::vector<double> start = StartingValues(d.base, effects, ds, o.fit);
     FitOptions fo = o.fit;
     fo.threads = 1;
     fo.progress = nullptr;
@@ -157,14 +223,16 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
     return c;
   };
   // Fit the candidates on `threads` workers pulling from a shared queue.
-  d.candidates.resize(names.size());
+  d.candidates.resize(changes.size());
   std::mutex progress_mutex;
-  ForEachInParallel(names.size(), o.threads, [&](std::size_t i) {
+  ForEachInParallel(changes.size(), o.threads, [&](std::size_t i) {
     if (o.fit.progress) {
       const std::lock_guard<std::mutex> lock(progress_mutex);
-      o.fit.progress("diagnose: fitting " + hw::FormatModelSpec(model) + "+" + names[i]);
+      o.fit.progress("diagnose: fitting " + hw::FormatModelSpec(model) +
+                     (changes[i].replaces.empty() ? "" : "-" + changes[i].replaces) + "+" +
+                     changes[i].effect);
     }
-    d.candidates[i] = evaluate(names[i]);
+    d.candidates[i] = evaluate(changes[i]);
   });
 
   const SignificanceRule rule{o.min_excess, o.min_explained};
@@ -198,17 +266,40 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
     c.evidence = text;
   }
 
-  d.adequate = d.candidates.empty() || !d.candidates.front().significant;
-  if (d.adequate) {
-    d.verdict =
-        "adequate: no catalog effect explains a significant part of the residual (tip RMS " +
-        Num(d.base.overall.tip_rms_mm, 4) + " mm against noise " + Num(ds.noise.tip_mm, 4) +
-        " mm, force RMS " + Num(d.base.overall.force_rms_n, 4) + " N against noise " +
-        Num(ds.noise.force_n, 4) + " N)";
+  const bool missing = !d.candidates.empty() && d.candidates.front().significant;
+  const bool tip_left = d.tip_excess >= o.min_excess || TopGain(d.where, "tip") >= o.min_structure;
+  const bool force_left =
+      d.force_excess >= o.min_excess || TopGain(d.where, "force") >= o.min_structure;
+  const std::string figures = ChannelWords(d, ds, true) + ", " + ChannelWords(d, ds, false);
+  if (missing) {
+    const Candidate& best = d.candidates.front();
+    d.verdict = "missing_effect";
+    d.summary = "missing effect: " + best.effect +
+                (best.replaces.empty() ? "" : " (replacing " + best.replaces + ")") + " (" +
+                best.evidence + ")";
+  } else if (tip_left || force_left) {
+    d.verdict = "unexplained";
+    d.summary = "unexplained: no catalog effect explains the residual; " + figures;
+    for (const char* ch : {"tip", "force"}) {
+      if ((std::string(ch) == "tip" ? tip_left : force_left)) {
+        const std::string w = WhereWords(d.where, ch);
+        if (!w.empty()) d.summary += "; " + w;
+      }
+    }
+    if (o.discover) {
+      d.proposal = DiscoverEffect(model, ds, d, residuals, o, o.propose_dir);
+      if (d.proposal) {
+        d.summary += "; proposed: " + d.proposal->equation;
+      } else {
+        d.summary += "; no term of the discovery library explains it either";
+      }
+    }
   } else {
-    d.verdict = "missing effect: " + d.candidates.front().effect + " (" +
-                d.candidates.front().evidence + ")";
+    d.verdict = "adequate";
+    d.summary = "adequate: the held-out residual is at the noise floor in both channels (" +
+                figures + ") and no variable explains a significant part of it";
   }
+  d.adequate = d.verdict == "adequate";
   return d;
 }
 
@@ -216,16 +307,22 @@ std::vector<LadderStep> ErrorLadder(const std::vector<std::string>& model, const
                                     const DiagnoseOptions& o, int max_rounds) {
   std::vector<LadderStep> ladder;
   std::vector<std::string> current = model;
+  DiagnoseOptions step_options = o;  // discovery runs only where the catalog ends (unexplained)
   for (int round = 0; round <= max_rounds; ++round) {
     LadderStep step;
     step.model = current;
-    step.diagnosis = Diagnose(current, ds, o);
-    const bool done = step.diagnosis.adequate || round == max_rounds;
-    const std::string next = done ? std::string() : step.diagnosis.candidates.front().effect;
+    step.diagnosis = Diagnose(current, ds, step_options);
+    const Diagnosis& d = step.diagnosis;
+    const bool climb = d.verdict == "missing_effect" && round < max_rounds;
+    const Candidate next = climb ? d.candidates.front() : Candidate{};
     ladder.push_back(std::move(step));
-    if (done) break;
-    current.push_back(next);
+    if (!climb) break;
+    std::erase(current, next.replaces);
+    std::erase(step_options.swappable, next.replaces);
+    current.push_back(next.effect);
     current = hw::ParseModelSpec(hw::FormatModelSpec(current), FitCatalog(o.fit));
+    // What the ladder added may later be replaced by a better candidate.
+    step_options.swappable.push_back(next.effect);
   }
   return ladder;
 }

@@ -10,12 +10,23 @@
 // without making the other channel notably worse; candidates are ranked by the total
 // held-out residual they remove. When none is significant the model is "adequate".
 // The evidence is put in words from the residual breakdown (phase, speed, configuration).
+// Verdicts: "missing_effect" when a candidate is significant; otherwise "unexplained" when a
+// channel keeps a significant held-out excess (≥ min_excess noise variances) or a
+// variable of `where` (lab/catheter_where.h) explains ≥ min_structure noise variances of
+// it on held-out trials — then a new effect is proposed from the data
+// (lab/effect_discovery.h); otherwise "adequate". The noise floor is the dataset's
+// (lab/lab_dataset.h: from the signals' second differences), not the model's.
+// The error ladder also tries replacing an effect it added earlier by another.
 #pragma once
 
+#include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "hw/effect_file.h"
 #include "lab/residual_breakdown.h"
+#include "lab/residual_structure.h"
 
 namespace echoservo::lab {
 
@@ -26,16 +37,29 @@ struct DiagnoseOptions {
   double min_explained = 0.3;           // fraction of that excess a candidate must remove
   int threads = 2;                      // candidates fitted in parallel
   std::vector<std::string> candidates;  // empty: every catalog effect not in the model
+  // Effects of the model that may be replaced by a candidate (the ladder's own additions).
+  std::vector<std::string> swappable;
+  // Held-out noise variances a variable of `where` must explain to count as structure.
+  double min_structure = 0.25;
+  // Propose an effect when the verdict is "unexplained" (lab/effect_discovery.h).
+  bool discover = true;
+  int max_terms = 2;                  // terms of a proposal
+  int variables_per_channel = 3;      // top `where` variables screened per channel
+  int refit = 3;                      // screened terms fitted through the full model
+  std::filesystem::path propose_dir;  // where the proposal's effect file goes ("": not written)
 };
 
 struct CrossValidation {
   double tip_mse = 0.0;  // held-out, in noise variances
   double force_mse = 0.0;
+  // With CrossValidate(..., keep_predictions = true): each trial's held-out prediction.
+  std::vector<Prediction> held_out;
 };
 
 struct Candidate {
   std::string effect;
-  FitResult fit;  // SPEC+effect on all trials
+  std::string replaces;  // a model effect this candidate replaces ("" when it is added)
+  FitResult fit;         // SPEC+effect on all trials
   CrossValidation cv;
   // Fraction of the model's held-out tip excess removed; NaN when the model leaves less
   // than `min_excess` in that channel (nothing to explain).
@@ -47,14 +71,33 @@ struct Candidate {
   std::string evidence;
 };
 
+// A new effect learned from the data (lab/effect_discovery.h).
+struct Proposal {
+  hw::EffectFileSpec effect;         // fitted values as defaults
+  std::vector<std::string> effects;  // the model plus the proposed effect
+  std::string spec;                  // usable with --model (the file as @path)
+  std::string file;                  // where the effect file was written ("" if not)
+  std::string equation;              // in words and units
+  std::vector<std::string> terms;    // library ids of the chosen terms
+  FitResult fit;
+  CrossValidation cv;
+  double rms_mm = 0.0;       // held-out tip RMS (mm): sqrt(cv tip mse)·noise
+  double force_rms_n = 0.0;  // held-out force RMS (N)
+};
+
 struct Diagnosis {
   std::vector<std::string> model;
   FitResult base;
   CrossValidation base_cv;
   Breakdown breakdown;                // of the model's residual
   std::vector<Candidate> candidates;  // best first
+  double tip_excess = 0.0;            // held-out mean square − 1, noise variances
+  double force_excess = 0.0;
+  std::vector<WhereEntry> where;  // ranked per channel
   bool adequate = false;
-  std::string verdict;
+  std::string verdict;               // "adequate" | "missing_effect" | "unexplained"
+  std::string summary;               // the verdict in a sentence, with its figures
+  std::optional<Proposal> proposal;  // when unexplained and a proposal was found
 };
 
 Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& dataset,
@@ -71,9 +114,14 @@ std::vector<LadderStep> ErrorLadder(const std::vector<std::string>& model,
                                     const LabDataset& dataset, const DiagnoseOptions& options,
                                     int max_rounds = 4);
 
+// Starting values for `effects`: each effect's default, or the value `fit` found where it
+// has the same parameter.
+std::vector<double> StartingValues(const FitResult& fit, const std::vector<std::string>& effects,
+                                   const LabDataset& dataset, const FitOptions& options);
+
 // Held-out scores of `effects` (exposed for tests).
 CrossValidation CrossValidate(const std::vector<std::string>& effects, const LabDataset& dataset,
                               const FitOptions& options, int folds,
-                              const std::vector<double>* initial);
+                              const std::vector<double>* initial, bool keep_predictions = false);
 
 }  // namespace echoservo::lab

@@ -37,7 +37,7 @@ std::vector<double> Derivative(const std::vector<double>& t, const std::vector<d
 LabTrial Prepare(hw::Trial trial, const LabDatasetOptions& o) {
   LabTrial lt;
   lt.velocity_mm_s = Derivative(trial.t_s, trial.base_mm, o.velocity_window_s);
-  lt.acceleration_mm_s2 = Derivative(trial.t_s, lt.velocity_mm_s, 2.0 * o.velocity_window_s);
+  lt.acceleration_mm_s2 = Derivative(trial.t_s, lt.velocity_mm_s, o.velocity_window_s);
   for (std::size_t i = 0; i < trial.size(); i += static_cast<std::size_t>(o.stride))
     lt.fit_index.push_back(i);
   // A sample may be stuck if, within ±window/2, the velocity is below the stick speed

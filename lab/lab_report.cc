@@ -4,11 +4,13 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <map>
 #include <numbers>
 #include <numeric>
 #include <stdexcept>
 
 #include "hw/effect_registry.h"
+#include "lab/catheter_where.h"
 #include "report/html_page.h"
 #include "report/svg_plot.h"
 
@@ -55,10 +57,10 @@ std::string Spec(const std::vector<std::string>& effects) { return hw::FormatMod
 // A verdict without its "adequate: " / "missing effect: " prefix (the page says it in
 // bold before), as a sentence: "adequate: no catalog effect ..." → "No catalog effect ...".
 std::string Sentence(std::string text) {
-  for (const std::string prefix : {"adequate: ", "missing effect: "}) {
+  for (const std::string prefix : {"adequate: ", "missing effect: ", "unexplained: "}) {
     if (text.rfind(prefix, 0) == 0) {
       text = text.substr(prefix.size());
-      if (prefix == "adequate: " && !text.empty() && text[0] >= 'a' && text[0] <= 'z') {
+      if (prefix != "missing effect: " && !text.empty() && text[0] >= 'a' && text[0] <= 'z') {
         text[0] = static_cast<char>(text[0] - 'a' + 'A');
       }
     }
@@ -179,7 +181,10 @@ std::string LadderHtml(const Context& c) {
   s += std::string("<div class=\"verdict ") + (last.adequate ? "ok" : "miss") + "\"><b>" +
        (last.adequate ? "Adequate:" : "Not adequate:") + "</b>final model <code>" +
        Esc(c.final_spec) + "</code> (" + added + (last.adequate ? "" : ", the maximum") + "). " +
-       (last.adequate ? "" : "Still missing: ") + Esc(Sentence(last.verdict)) + "</div>";
+       (last.adequate                   ? ""
+        : last.verdict == "unexplained" ? "Unexplained: "
+                                        : "Still missing: ") +
+       Esc(Sentence(last.summary)) + "</div>";
   svg::BarChart bt;
   bt.title = "Tip RMS along the ladder";
   bt.y_title = "tip RMS (mm)";
@@ -203,8 +208,10 @@ std::string DiagnosisHtml(const Context& c) {
   std::string s =
       "<section id=\"diagnosis\"><h2>Diagnosis of <code>" + Esc(c.spec) + "</code></h2>";
   s += std::string("<div class=\"verdict ") + (d.adequate ? "ok" : "miss") + "\"><b>" +
-       (d.adequate ? "ADEQUATE:" : "MISSING EFFECT:") + "</b>" + Esc(Sentence(d.verdict)) +
-       "</div>";
+       (d.adequate                   ? "ADEQUATE:"
+        : d.verdict == "unexplained" ? "UNEXPLAINED:"
+                                     : "MISSING EFFECT:") +
+       "</b>" + Esc(Sentence(d.summary)) + "</div>";
   s += "<p class=\"note\">Every catalog effect not in the model is added in turn and the model "
        "refitted; held-out "
        "scores come from cross-validation by trial. <code>" +
@@ -228,6 +235,91 @@ std::string DiagnosisHtml(const Context& c) {
     s += "<li><b>+" + Esc(k.effect) + "</b>: " + Esc(k.evidence) + "</li>";
   s += "</ol></section>";
   return s;
+}
+
+// The held-out residual's binned mean along `variable`, one line per direction of motion.
+svg::LinePlot WherePlot(const ResidualTable& t, const std::string& channel,
+                        const std::string& variable, double noise, const char* unit) {
+  const std::vector<double>& x = t.Variable(variable);
+  const std::vector<double>& r = channel == "tip" ? t.tip : t.force;
+  const std::vector<int> bins = QuantileBins(x, 16);
+  const int nb = bins.empty() ? 0 : *std::max_element(bins.begin(), bins.end()) + 1;
+  svg::LinePlot p;
+  p.title = channel + " residual along " + variable;
+  p.x_title = variable;
+  p.y_title = channel + " residual (" + unit + "), binned mean";
+  p.zero_line = true;
+  p.width = kHalfWidth;
+  p.height = 300;
+  const char* colors[] = {"#d7191c", "#7b7b7b", "#2c7bb6"};
+  const char* labels[] = {"moving \u2212", "at rest", "moving +"};
+  for (int dir = -1; dir <= 1; ++dir) {
+    std::vector<double> sx(static_cast<std::size_t>(nb), 0.0), sy(sx.size(), 0.0),
+        n(sx.size(), 0.0);
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      if (t.direction[i] != dir) continue;
+      const auto b = static_cast<std::size_t>(bins[i]);
+      sx[b] += x[i];
+      sy[b] += r[i] * noise;
+      n[b] += 1.0;
+    }
+    svg::Line line{labels[dir + 1], {}, {}, colors[dir + 1], 1.6, dir == 0, 1.0};
+    for (std::size_t b = 0; b < sx.size(); ++b) {
+      if (n[b] < 10) continue;
+      line.x.push_back(sx[b] / n[b]);
+      line.y.push_back(sy[b] / n[b]);
+    }
+    if (line.x.size() >= 2) p.lines.push_back(std::move(line));
+  }
+  return p;
+}
+
+// Where the SPEC's held-out residual lives, and the proposal when the catalog ends.
+std::string WhereHtml(const Context& c) {
+  const Diagnosis& d = c.ladder.front().diagnosis;
+  if (d.base_cv.held_out.size() != c.ds.trials.size()) return "";
+  const ResidualTable t = BuildResidualTable(c.ds, d.base_cv.held_out, 2);
+  std::string s = "<section id=\"where\"><h2>Where <code>" + Esc(c.spec) +
+                  "</code> fails</h2><p class=\"note\">Share of each channel&rsquo;s held-out "
+                  "excess (mean square above the noise) that a smooth function of one variable, "
+                  "learnt on other trials and taken jointly with the direction of motion, "
+                  "predicts. Held-out excess: tip " +
+                  Fix(d.tip_excess, 2) + ", force " + Fix(d.force_excess, 2) +
+                  " noise variances.</p><table>" +
+                  Row({"channel", "variable", "excess explained", "gain (noise var)"}, "", true, 2);
+  std::vector<std::pair<std::string, std::string>> top;
+  std::map<std::string, int> shown;
+  for (const WhereEntry& e : d.where) {
+    if (shown[e.channel]++ >= 4) continue;
+    s += Row({Esc(e.channel), "<code>" + Esc(e.variable) + "</code>",
+              PercentCell(e.explained_fraction), Fix(e.gain, 2)});
+    const double excess = e.channel == "tip" ? d.tip_excess : d.force_excess;
+    if (shown[e.channel] <= 2 && (excess >= 0.5 || e.gain >= 0.25))
+      top.emplace_back(e.channel, e.variable);
+  }
+  s += "</table>";
+  if (!top.empty()) {
+    s += "<div class=\"grid2\">";
+    for (const auto& [channel, variable] : top) {
+      const bool tip = channel == "tip";
+      s += "<div>" +
+           svg::RenderLinePlot(WherePlot(t, channel, variable,
+                                         tip ? c.ds.noise.tip_mm : c.ds.noise.force_n,
+                                         tip ? "mm" : "N")) +
+           "</div>";
+    }
+    s += "</div>";
+  }
+  for (const LadderStep& step : c.ladder) {
+    if (!step.diagnosis.proposal) continue;
+    const Proposal& p = *step.diagnosis.proposal;
+    s += "<h3>Proposed effect (beyond the catalog)</h3><p><code>" + Esc(p.equation) +
+         "</code></p><p>Held-out tip RMS " + Fix(p.rms_mm, 4) + " mm (noise " +
+         Fix(c.ds.noise.tip_mm, 4) + " mm), force RMS " + Fix(p.force_rms_n, 4) + " N (noise " +
+         Fix(c.ds.noise.force_n, 4) + " N). Effect file: <code>" + Esc(p.file) +
+         "</code>; use it with <code>--model " + Esc(p.spec) + "</code>.</p>";
+  }
+  return s + "</section>";
 }
 
 std::string ParameterTable(const std::string& title, const FitResult& r) {
@@ -529,6 +621,7 @@ std::string RenderLabReport(const LabDataset& ds, const std::vector<LadderStep>&
   page += HeaderHtml(c) + "\n";
   page += LadderHtml(c) + "\n";
   page += DiagnosisHtml(c) + "\n";
+  page += WhereHtml(c) + "\n";
   page += ParametersHtml(c) + "\n";
   page += TrialsHtml(c) + "\n";
   page += BreakdownHtml(c) + "\n";

@@ -27,15 +27,40 @@ void PredictTrial(const hw::TransmissionModel& model, const LabTrial& lt,
   // Friction at every sample's speed, then the force, then the drive, each over the whole
   // trial (one call per effect; the tip buffer holds the speeds, then the drives).
   for (std::size_t i = 0; i < n; ++i) tip[i] = std::abs(lt.velocity_mm_s[i]);
-  model.FrictionMagnitudesN(tip, out.force_n);
-  const double breakaway = model.FrictionLevelN();
-  for (std::size_t i = 0; i < n; ++i) {
-    const double kinetic = out.force_n[i];
-    const double band = std::max(breakaway, kinetic);
-    out.force_n[i] = lt.may_stick[i] != 0 ? std::clamp(tr.force_n[i], -band, band)
-                                          : std::copysign(kinetic, lt.velocity_mm_s[i]);
+  const bool signals = model.UsesSignals();
+  std::vector<double> time_s, extra_n;  // signal path only
+  hw::TrialSignals sig;
+  if (!signals) {
+    model.FrictionMagnitudesN(tip, out.force_n);
+    const double breakaway = model.FrictionLevelN();
+    for (std::size_t i = 0; i < n; ++i) {
+      const double kinetic = out.force_n[i];
+      const double band = std::max(breakaway, kinetic);
+      out.force_n[i] = lt.may_stick[i] != 0 ? std::clamp(tr.force_n[i], -band, band)
+                                            : std::copysign(kinetic, lt.velocity_mm_s[i]);
+    }
+    model.DrivesMm(tr.base_mm, out.force_n, tip);
+  } else {
+    // Signal effects: friction and breakaway per sample, and the signed extra force, which
+    // the force sensor reads on top of friction; the friction band applies to the force
+    // left after it. The drive sees the friction alone.
+    time_s.resize(n);
+    for (std::size_t i = 0; i < n; ++i) time_s[i] = tr.t_s[i] - tr.t_s[0];
+    sig = {time_s, tr.base_mm, lt.velocity_mm_s, lt.acceleration_mm_s2};
+    model.FrictionMagnitudesN(tip, sig, out.force_n);
+    std::vector<double> breakaway(n);
+    model.BreakawaysN(sig, breakaway);
+    extra_n.assign(n, 0.0);
+    model.AddForcesN(sig, extra_n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double kinetic = out.force_n[i];
+      const double band = std::max(breakaway[i], kinetic);
+      out.force_n[i] = lt.may_stick[i] != 0 ? std::clamp(tr.force_n[i] - extra_n[i], -band, band)
+                                            : std::copysign(kinetic, lt.velocity_mm_s[i]);
+    }
+    model.DrivesMm(tr.base_mm, out.force_n, tip);
+    for (std::size_t i = 0; i < n; ++i) out.force_n[i] += extra_n[i];
   }
-  model.DrivesMm(tr.base_mm, out.force_n, tip);
 
   const double half = 0.5 * model.BacklashWidthMm();
   double last_dt = -1.0;
@@ -75,7 +100,16 @@ void PredictTrial(const hw::TransmissionModel& model, const LabTrial& lt,
       tip[i] = value;  // j ≤ i, so later reads (smaller i) only touch indices ≤ i
     }
   }
-  for (double& x : tip) x = scale * x + nuisance.tip_offset_mm;
+  if (!signals) {
+    for (double& x : tip) x = scale * x + nuisance.tip_offset_mm;
+    return;
+  }
+  // reading = scale·delayed + Σ offsets(delayed, signals) + per-trial offset.
+  std::vector<double>& offset = extra_n;  // reused: delayed tip, then delayed + offsets
+  offset.assign(tip.begin(), tip.end());
+  model.AddSensorOffsetsMm(offset, sig);
+  for (std::size_t i = 0; i < n; ++i)
+    tip[i] = scale * tip[i] + (offset[i] - tip[i]) + nuisance.tip_offset_mm;
 }
 
 }  // namespace echoservo::lab

@@ -8,6 +8,13 @@
 // estimated speed exceeds breakaway, the band is ±kinetic instead). The drive is the
 // base plus the model's offsets, the tip follows the deadzone from an initial contact
 // state, and the tip sensor applies the model's delay and gain plus a per-trial offset.
+// Effects with signal hooks (hw/effect.h; model.UsesSignals()) see each sample's time since
+// the trial's first sample, base position, velocity and acceleration (LabTrial's): their
+// friction and breakaway vary per sample, their signed extra force (ForceN) is added to
+// the predicted force (where the guidewire may stick, the measured force less that extra
+// force is what the friction band clamps; the drive sees the friction alone), and their
+// sensor offsets at the delayed tip are added to the tip reading. Without such effects
+// the prediction is computed exactly as before, bit for bit.
 // Per-trial nuisance: tip-sensor offset (mm) and initial contact state c ∈ [−1, 1]
 // (the tip starts at drive + c·B/2). Units: mm, s, N.
 #pragma once

@@ -2,15 +2,17 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <limits>
 #include <numbers>
-
-#include "lab/lab_dataset.h"
 
 namespace echoservo::lab {
 namespace {
 
 constexpr int kPhaseBins = 8;
 constexpr int kTimeSegments = 6;
+constexpr int kPairPhaseBins = 8;
+constexpr int kPairTimeBins = 4;
 
 struct Sums {
   std::size_t n = 0;
@@ -100,47 +102,174 @@ MotionBreakdown ComputeMotionBreakdown(const estimation::MotionTrace& trace, con
   return {Groups(phase, phase_labels), Groups(time, time_labels)};
 }
 
-double MotionLabNoise(const MotionModelSpec& spec, const estimation::MotionTrace& trace) {
-  MotionModelSpec rich = spec;
-  rich.respiration = true;
-  rich.rate_drift = true;
-  rich.harmonics = std::min(spec.harmonics + 3, 12);
-  const double rough = EstimateNoise(trace.position_mm, 1e-3);
-  // The residual scale does not change where the fit ends, only its normalisation.
-  const MotionFit base = FitMotionModel(spec, trace, rough);
-  const MotionFit fit = FitBest(rich, trace, rough, StartMotionParameters(rich, base, trace));
-  const int params = 2 + 1 + 3 + 2 * rich.harmonics;
-  const double dof = std::max(1.0, static_cast<double>(trace.size()) - params);
-  const double sigma = fit.rms_mm * std::sqrt(static_cast<double>(trace.size()) / dof);
-  return std::max(std::min(rough, sigma), 1e-3);
+MotionHeldOut HeldOutMotion(const MotionModelSpec& spec, const estimation::MotionTrace& trace,
+                            double noise, const MotionDiagnoseOptions& o,
+                            const std::vector<double>* initial) {
+  MotionHeldOut h;
+  h.residual.assign(trace.size(), 0.0);
+  h.fold.assign(trace.size(), 0);
+  const auto blocks = static_cast<std::size_t>(trace.duration_s() / o.block_s) + 1;
+  std::vector<std::pair<std::vector<std::size_t>, std::vector<std::size_t>>> folds;
+  if (blocks < 2 || o.folds < 2) {
+    // No held-out data: in-sample residuals, one fold.
+    const MotionFit fit = FitMotionModel(spec, trace, noise, {}, initial);
+    for (std::size_t i = 0; i < trace.size(); ++i)
+      h.residual[i] = (fit.prediction_mm[i] - trace.position_mm[i]) / noise;
+    h.mse = fit.mse_norm;
+    return h;
+  }
+  // As CrossValidateFolds: block b is in fold b mod k.
+  const auto k = std::min<std::size_t>(static_cast<std::size_t>(o.folds), blocks);
+  double ss = 0.0;
+  for (std::size_t f = 0; f < k; ++f) {
+    std::vector<std::size_t> train;
+    std::vector<std::size_t> test;
+    for (std::size_t b = 0; b < blocks; ++b) (b % k == f ? test : train).push_back(b);
+    const std::vector<std::size_t> test_index = Indices(trace, test, o.block_s);
+    if (test_index.empty()) continue;
+    const MotionFit fit =
+        FitMotionModel(spec, trace, noise, Indices(trace, train, o.block_s), initial);
+    for (std::size_t i : test_index) {
+      h.residual[i] = (fit.prediction_mm[i] - trace.position_mm[i]) / noise;
+      h.fold[i] = static_cast<int>(f);
+      ss += h.residual[i] * h.residual[i];
+    }
+  }
+  h.mse = ss / static_cast<double>(trace.size());
+  return h;
 }
 
 double CrossValidateMotion(const MotionModelSpec& spec, const estimation::MotionTrace& trace,
                            double noise, const MotionDiagnoseOptions& o,
                            const std::vector<double>* initial) {
-  const auto blocks = static_cast<std::size_t>(trace.duration_s() / o.block_s) + 1;
-  if (blocks < 2 || o.folds < 2) return FitMotionModel(spec, trace, noise, {}, initial).mse_norm;
-  return CrossValidateFolds(
-             blocks, o.folds,
-             [&](const std::vector<std::size_t>& train, const std::vector<std::size_t>& test) {
-               const std::vector<std::size_t> fit_index = Indices(trace, train, o.block_s);
-               const std::vector<std::size_t> test_index = Indices(trace, test, o.block_s);
-               const MotionFit fit = FitMotionModel(spec, trace, noise, fit_index, initial);
-               return FoldScore{
-                   {EvaluateMotionModel(spec, fit.parameters, trace, noise, test_index)},
-                   static_cast<double>(test_index.size())};
-             })
-      .front();
+  return HeldOutMotion(spec, trace, noise, o, initial).mse;
 }
+
+std::vector<WhereEntry> MotionWhere(const estimation::MotionTrace& trace, const MotionFit& fit,
+                                    const MotionHeldOut& h, const MotionNoise& noise,
+                                    double block_s) {
+  const double excess = h.mse - 1.0;
+  const double duration = std::max(trace.duration_s(), 1e-9);
+  std::vector<double> time(trace.size());
+  std::vector<int> phase_x_time(trace.size());
+  for (std::size_t i = 0; i < trace.size(); ++i) {
+    time[i] = trace.t_s[i] - trace.t_s.front();
+    const int p =
+        std::min(kPairPhaseBins - 1,
+                 static_cast<int>(fit.phase_rad[i] / (2.0 * std::numbers::pi) * kPairPhaseBins));
+    const int s = std::min(kPairTimeBins - 1, static_cast<int>(time[i] / duration * kPairTimeBins));
+    phase_x_time[i] = p * kPairTimeBins + s;
+  }
+  // Time bins at least three CV blocks wide, so that a held-out block's bin has training data.
+  StructureOptions time_options;
+  time_options.bins = std::clamp(static_cast<int>(duration / (3.0 * block_s)), 2, 12);
+  StructureOptions phase_options;
+  phase_options.bins = 12;
+  StructureOptions rate_options;
+  rate_options.bins = 8;
+  std::vector<WhereEntry> out = {
+      {"position", "time_s", ExplainedByVariable(h.residual, time, h.fold, time_options), 0.0},
+      {"position", "cardiac_phase",
+       ExplainedByVariable(h.residual, fit.phase_rad, h.fold, phase_options), 0.0},
+      {"position", "heart_rate_bpm",
+       ExplainedByVariable(h.residual, noise.local_rate_bpm, h.fold, rate_options), 0.0},
+      {"position", "cardiac_phase_x_time", ExplainedByBins(h.residual, phase_x_time, h.fold), 0.0},
+  };
+  for (WhereEntry& e : out) {
+    e.explained_fraction =
+        excess > 0.0 ? std::clamp(e.gain / excess, 0.0, 1.0) : (e.gain > 0.0 ? 1.0 : 0.0);
+  }
+  RankWhere(out);
+  return out;
+}
+
+namespace {
+
+std::string WhereText(const std::vector<WhereEntry>& where, double min_gain) {
+  std::string text;
+  for (const WhereEntry& e : where) {
+    if (e.gain < min_gain) continue;
+    text += (text.empty() ? "" : ", ") + e.variable + " (explains " +
+            PercentText(e.explained_fraction) + " of the excess)";
+  }
+  return text;
+}
+
+// The default proposal folder: "<trace stem>_proposal" beside the trace.
+std::filesystem::path ProposalDir(const estimation::MotionTrace& trace, const std::string& dir) {
+  if (!dir.empty()) return dir;
+  const std::filesystem::path source(trace.source.empty() ? "trace" : trace.source);
+  return source.parent_path() / (source.stem().string() + "_proposal");
+}
+
+std::optional<MotionProposal> Discover(const MotionModelSpec& spec,
+                                       const estimation::MotionTrace& trace, double noise,
+                                       const MotionFit& base, double base_cv,
+                                       const std::vector<WhereEntry>& where,
+                                       const MotionDiagnoseOptions& o) {
+  const std::vector<MotionTerm> library = MotionTermLibrary(spec.harmonics);
+  std::vector<bool> used(library.size(), false);
+  std::vector<MotionTerm> chosen;
+  MotionModelSpec current = spec;
+  MotionFit fit = base;
+  double cv = base_cv;
+  for (int round = 0; round < o.max_terms; ++round) {
+    std::vector<std::size_t> open;
+    for (std::size_t j = 0; j < library.size(); ++j)
+      if (!used[j]) open.push_back(j);
+    if (open.empty()) break;
+    std::vector<double> scores(open.size(), std::numeric_limits<double>::infinity());
+    ForEachInParallel(open.size(), o.threads, [&](std::size_t i) {
+      MotionModelSpec with = current;
+      with.terms.push_back(library[open[i]]);
+      const std::vector<double> start = StartMotionParameters(with, fit, trace);
+      scores[i] = CrossValidateMotion(with, trace, noise, o, &start);
+    });
+    const auto best =
+        static_cast<std::size_t>(std::min_element(scores.begin(), scores.end()) - scores.begin());
+    if (!(cv - scores[best] >= o.min_discovery_gain)) break;
+    used[open[best]] = true;
+    chosen.push_back(library[open[best]]);
+    current.terms.push_back(library[open[best]]);
+    const std::vector<double> start = StartMotionParameters(current, fit, trace);
+    fit = FitMotionModel(current, trace, noise, {}, &start);
+    cv = scores[best];
+  }
+  if (chosen.empty()) return std::nullopt;
+  MotionProposal p;
+  for (const MotionTerm& t : chosen) {
+    p.terms.push_back(t.name);
+    p.equation += (p.equation.empty() ? "position_mm += " : " + ") + t.equation;
+  }
+  const std::filesystem::path file = ProposalDir(trace, o.propose_dir) / "motion_term.json";
+  std::string signature = "held-out residual of " + FormatMotionModel(spec);
+  if (!where.empty()) signature += " structured along " + where.front().variable;
+  WriteMotionTermFile(file, "motion_term", signature, chosen);
+  p.file = file.string();
+  p.spec = FormatMotionModel(spec) + "+@" + p.file;
+  // Refit from the file as a user would: the SPEC is parsed and the file read back.
+  const MotionModelSpec from_file = ParseMotionModel(p.spec);
+  p.fit = FitMotionModel(from_file, trace, noise, {}, &fit.parameters);
+  p.cv_mse = CrossValidateMotion(from_file, trace, noise, o, &p.fit.parameters);
+  p.rms_mm = std::sqrt(p.cv_mse) * noise;
+  return p;
+}
+
+}  // namespace
 
 MotionDiagnosis DiagnoseMotion(const MotionModelSpec& spec, const estimation::MotionTrace& trace,
                                const MotionDiagnoseOptions& o) {
   MotionDiagnosis d;
   d.model = spec;
-  d.noise_mm = MotionLabNoise(spec, trace);
+  d.noise = EstimateMotionNoise(trace);
+  d.noise_mm = d.noise.position_mm;
   d.base = FitMotionModel(spec, trace, d.noise_mm);
-  d.base_cv_mse = CrossValidateMotion(spec, trace, d.noise_mm, o, &d.base.parameters);
+  const MotionHeldOut held = HeldOutMotion(spec, trace, d.noise_mm, o, &d.base.parameters);
+  d.base_cv_mse = held.mse;
+  d.excess = held.mse - 1.0;
+  d.held_out_rms_mm = std::sqrt(held.mse) * d.noise_mm;
   d.breakdown = ComputeMotionBreakdown(trace, d.base);
+  d.where = MotionWhere(trace, d.base, held, d.noise, o.block_s);
   const std::vector<std::string> names = MissingMotionEffects(spec);
   d.candidates.resize(names.size());
   ForEachInParallel(names.size(), o.threads, [&](std::size_t i) {
@@ -175,13 +304,34 @@ MotionDiagnosis DiagnoseMotion(const MotionModelSpec& spec, const estimation::Mo
     }
     c.evidence = text;
   }
-  d.adequate = d.candidates.empty() || !d.candidates.front().significant;
-  d.verdict = d.adequate ? "adequate: no catalog effect explains a significant part of the "
-                           "residual (position RMS " +
-                               FixedText(d.base.rms_mm, 4) + " mm against noise " +
-                               FixedText(d.noise_mm, 4) + " mm)"
-                         : "missing effect: " + d.candidates.front().effect + " (" +
-                               d.candidates.front().evidence + ")";
+  const std::string size = "held-out RMS " + FixedText(d.held_out_rms_mm, 4) +
+                           " mm against noise " + FixedText(d.noise_mm, 4) + " mm (excess " +
+                           FixedText(d.excess, 2) + " noise variances)";
+  const std::string structure = WhereText(d.where, o.min_structure_gain);
+  if (!d.candidates.empty() && d.candidates.front().significant) {
+    d.verdict = "missing_effect";
+    d.summary = "missing effect: " + d.candidates.front().effect + " (" +
+                d.candidates.front().evidence + ")";
+  } else if (d.excess >= o.rule.min_excess || !structure.empty()) {
+    d.verdict = "unexplained";
+    d.summary = "unexplained: " + size + "; no catalog effect explains it; ";
+    d.summary += structure.empty() ? "no structure along time, cardiac phase or heart rate"
+                                   : "it lies along " + structure;
+    if (o.discover) {
+      d.proposal = Discover(spec, trace, d.noise_mm, d.base, d.base_cv_mse, d.where, o);
+      d.summary += d.proposal
+                       ? "; proposed term: " + d.proposal->equation + " (" + d.proposal->spec +
+                             ": held-out RMS " + FixedText(d.proposal->rms_mm, 4) + " mm)"
+                       : "; no library term removes it";
+    }
+  } else {
+    d.verdict = "adequate";
+    d.summary = "adequate: " + size +
+                "; no catalog effect explains a significant part of it "
+                "and the held-out residual has no structure along time, cardiac phase or heart "
+                "rate";
+  }
+  d.adequate = d.verdict == "adequate";
   return d;
 }
 

@@ -1,20 +1,34 @@
-// `lab compare|diagnose` on a target-motion trace: which effect is the motion model
-// missing? The catheter lab's procedure (lab/diagnosis.h) and machinery
-// (lab/candidate_ranking.h): the model and the model plus each missing catalog effect
-// (lab/motion_model.h) are scored by cross-validation over time blocks, in units of the
-// noise variance; a candidate must remove a significant part of the held-out excess.
+// `lab compare|diagnose` on a target-motion trace: is the motion model adequate, which
+// catalog effect is it missing, and if none, where does it fail and what term would fix
+// it? The catheter lab's procedure (lab/diagnosis.h) and machinery
+// (lab/candidate_ranking.h, lab/residual_structure.h).
 //
-// In: a trace (t in s, position in mm) and a model SPEC. Out: candidates best first, the
-// noise σ (mm) used, and a residual breakdown by cardiac phase and by time segment. An
-// effect outside the catalog inflates the noise estimate and may let the model pass.
+// Noise: the model-free floor of lab/motion_noise.h (the same for every SPEC). Scores are
+// held-out mean squares over time-block folds in noise variances; the excess is that − 1.
+// Verdicts:
+//   missing_effect: a catalog candidate (SPEC + effect) removes a significant part of the
+//     held-out excess (SignificanceRule);
+//   unexplained: no candidate does, but the excess is ≥ rule.min_excess or the held-out
+//     residual has structure along a `where` variable (gain ≥ min_structure_gain);
+//   adequate: neither.
+// Where: the held-out residuals explained by a binned mean of time_s, cardiac_phase,
+// heart_rate_bpm (local rate, lab/motion_noise.h) and cardiac_phase_x_time (8 phase × 4
+// slow-time bins), ranked by gain. Discovery (unexplained only): forward selection of at
+// most 3 library terms (lab/motion_terms.h), each refitted jointly with the model and kept
+// while it lowers the held-out mean square by ≥ min_discovery_gain; the result is written as
+// an effect file and refitted from that file for its held-out RMS.
+// Units: t in s, position in mm, scores in noise variances.
 // Details: docs/model_lab.md#motion-diagnosis-labmotion_diagnosish
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "lab/candidate_ranking.h"
 #include "lab/motion_model.h"
+#include "lab/motion_noise.h"
+#include "lab/residual_structure.h"
 
 namespace echoservo::lab {
 
@@ -33,14 +47,46 @@ struct MotionBreakdown {
 
 MotionBreakdown ComputeMotionBreakdown(const estimation::MotionTrace& trace, const MotionFit& fit);
 
-// The noise σ (mm) the lab uses for `spec` on `trace`.
-double MotionLabNoise(const MotionModelSpec& spec, const estimation::MotionTrace& trace);
-
 struct MotionDiagnoseOptions {
   int folds = 2;
   double block_s = 2.0;
   SignificanceRule rule;
   int threads = 2;
+  // Structure along a variable is significant from this held-out gain (noise variances):
+  // pure noise leaves ≤ 0 (about −0.01 on a 30 s trace), an effect of RMS σ/2 gives 0.25.
+  double min_structure_gain = 0.25;
+  bool discover = true;
+  int max_terms = 3;
+  double min_discovery_gain = 0.05;  // held-out mean square a term must remove
+  // Folder of the proposed term file; empty: "<trace stem>_proposal" beside trace.source.
+  std::string propose_dir;
+};
+
+// Held-out residuals of `spec` over time-block folds: blocks of `block_s` dealt into
+// `folds` folds by index; each fold predicted by a fit to the others.
+struct MotionHeldOut {
+  double mse = 0.0;              // noise variances
+  std::vector<double> residual;  // per sample, (model − measured)/σ
+  std::vector<int> fold;         // per sample
+};
+MotionHeldOut HeldOutMotion(const MotionModelSpec& spec, const estimation::MotionTrace& trace,
+                            double noise_mm, const MotionDiagnoseOptions& options,
+                            const std::vector<double>* initial);
+
+// Where the held-out residual has structure: one entry per variable (channel "position"),
+// ranked; explained_fraction = gain / (held_out.mse − 1), clipped to [0, 1].
+std::vector<WhereEntry> MotionWhere(const estimation::MotionTrace& trace, const MotionFit& fit,
+                                    const MotionHeldOut& held_out, const MotionNoise& noise,
+                                    double block_s);
+
+struct MotionProposal {
+  std::vector<std::string> terms;  // library terms chosen, in order
+  std::string spec;                // SPEC with the file, e.g. heartbeat:2+@dir/term.json
+  std::string file;
+  std::string equation;  // in words, with units
+  MotionFit fit;         // of `spec`, refitted from the file
+  double cv_mse = 0.0;   // held-out, noise variances
+  double rms_mm = 0.0;   // held-out position RMS
 };
 
 struct MotionCandidate {
@@ -55,13 +101,19 @@ struct MotionCandidate {
 
 struct MotionDiagnosis {
   MotionModelSpec model;
-  double noise_mm = 0.0;
+  MotionNoise noise;
+  double noise_mm = 0.0;  // noise.position_mm
   MotionFit base;
   double base_cv_mse = 0.0;
+  double excess = 0.0;           // base_cv_mse − 1
+  double held_out_rms_mm = 0.0;  // √base_cv_mse · noise
   MotionBreakdown breakdown;
   std::vector<MotionCandidate> candidates;  // best first
+  std::vector<WhereEntry> where;            // ranked
   bool adequate = false;
-  std::string verdict;
+  std::string verdict;                     // "adequate" | "missing_effect" | "unexplained"
+  std::string summary;                     // the verdict in words
+  std::optional<MotionProposal> proposal;  // unexplained, when discovery found a term
 };
 
 // Held-out mean square (noise variances) of `spec` over time-block folds.

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <numbers>
 #include <numeric>
 #include <stdexcept>
@@ -18,6 +19,8 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 constexpr int kMaxHarmonics = 12;
 constexpr double kMinRespirationHz = 0.08;
 constexpr double kMaxRespirationHz = 0.7;
+constexpr double kMinRateHz = 0.3;
+constexpr double kMaxRateHz = 4.0;
 
 // Positions of the parameters in the vector.
 struct Layout {
@@ -27,6 +30,7 @@ struct Layout {
   int resp = -1;  // cos, sin, rate
   int harm = 2;   // a1, b1, a2, b2, …
   int harmonics = 0;
+  std::vector<int> term;  // first parameter of each term
   int size = 0;
   explicit Layout(const MotionModelSpec& s) : harmonics(s.harmonics) {
     int next = 2;
@@ -36,14 +40,32 @@ struct Layout {
       next += 3;
     }
     harm = next;
-    size = next + 2 * s.harmonics;
+    next += 2 * s.harmonics;
+    for (const MotionTerm& t : s.terms) {
+      term.push_back(next);
+      next += static_cast<int>(t.parameters.size());
+    }
+    size = next;
   }
 };
 
+bool HasFileTerms(const MotionModelSpec& s) {
+  return std::any_of(s.terms.begin(), s.terms.end(),
+                     [](const MotionTerm& t) { return t.kind == MotionTermKind::kFile; });
+}
+
 template <typename T>
-T ModelAt(const Layout& l, const T* p, double tau) {
+T PhaseAt(const Layout& l, const T* p, double tau) {
   T phase = kTwoPi * p[l.rate] * tau;
   if (l.drift >= 0) phase += kTwoPi * 0.5 * p[l.drift] * tau * tau;
+  return phase;
+}
+
+// The heartbeat model and its library terms (file terms are added by FileTerms).
+template <typename T>
+T ModelAt(const Layout& l, const std::vector<MotionTerm>& terms, const T* p, double tau,
+          double time_s) {
+  const T phase = PhaseAt(l, p, tau);
   using std::cos;
   using std::sin;
   const T c1 = cos(phase);
@@ -61,13 +83,61 @@ T ModelAt(const Layout& l, const T* p, double tau) {
     const T r = kTwoPi * p[l.resp + 2] * tau;
     x += p[l.resp] * cos(r) + p[l.resp + 1] * sin(r);
   }
+  for (std::size_t j = 0; j < terms.size(); ++j) {
+    const T* q = p + l.term[j];
+    switch (terms[j].kind) {
+      case MotionTermKind::kFile:
+        break;
+      case MotionTermKind::kBaselineLinear:
+        x += q[0] * time_s;
+        break;
+      case MotionTermKind::kBaselineQuadratic:
+        x += q[0] * (time_s * time_s);
+        break;
+      case MotionTermKind::kAmplitudeGrowth: {
+        const T kp = static_cast<double>(terms[j].harmonic) * phase;
+        x += (q[0] * cos(kp) + q[1] * sin(kp)) * time_s;
+        break;
+      }
+    }
+  }
   return x;
 }
+
+// The file terms of a spec, each with its own parser (one FileTerms per fit and thread).
+class FileTerms {
+ public:
+  FileTerms(const Layout& l, const MotionModelSpec& s) : layout_(l) {
+    for (std::size_t j = 0; j < s.terms.size(); ++j) {
+      if (s.terms[j].kind != MotionTermKind::kFile) continue;
+      index_.push_back(j);
+      evaluators_.emplace_back(s.terms[j]);
+    }
+  }
+  bool empty() const { return index_.empty(); }
+  double At(const double* p, double tau, double time_s) const {
+    if (index_.empty()) return 0.0;
+    const Layout& l = layout_;
+    double phase = std::fmod(PhaseAt(l, p, tau), kTwoPi);
+    if (phase < 0.0) phase += kTwoPi;
+    const double rate = p[l.rate] + (l.drift >= 0 ? p[l.drift] * tau : 0.0);
+    double x = 0.0;
+    for (std::size_t i = 0; i < index_.size(); ++i)
+      x += evaluators_[i](time_s, phase, rate, p + l.term[index_[i]]);
+    return x;
+  }
+
+ private:
+  Layout layout_;
+  std::vector<std::size_t> index_;
+  std::vector<MotionTermEvaluator> evaluators_;
+};
 
 double MiddleTime(const estimation::MotionTrace& t) { return 0.5 * (t.t_s.front() + t.t_s.back()); }
 
 struct Residuals {
   Layout layout;
+  const std::vector<MotionTerm>* terms;
   const estimation::MotionTrace* trace;
   std::vector<std::size_t> index;
   double t_mid;
@@ -76,11 +146,50 @@ struct Residuals {
   bool operator()(T const* const* p, T* r) const {
     for (std::size_t i = 0; i < index.size(); ++i) {
       const std::size_t s = index[i];
-      r[i] = (ModelAt(layout, p[0], trace->t_s[s] - t_mid) - trace->position_mm[s]) / sigma;
+      r[i] = (ModelAt(layout, *terms, p[0], trace->t_s[s] - t_mid,
+                      trace->t_s[s] - trace->t_s.front()) -
+              trace->position_mm[s]) /
+             sigma;
     }
     return true;
   }
 };
+
+// With file terms: evaluated in double, differentiated by central differences.
+struct NumericResiduals {
+  Residuals base;
+  std::shared_ptr<FileTerms> files;
+  bool operator()(double const* const* p, double* r) const {
+    const estimation::MotionTrace& trace = *base.trace;
+    for (std::size_t i = 0; i < base.index.size(); ++i) {
+      const std::size_t s = base.index[i];
+      const double tau = trace.t_s[s] - base.t_mid;
+      const double time = trace.t_s[s] - trace.t_s.front();
+      const double x =
+          ModelAt(base.layout, *base.terms, p[0], tau, time) + files->At(p[0], tau, time);
+      r[i] = (x - trace.position_mm[s]) / base.sigma;
+      if (!std::isfinite(r[i])) return false;
+    }
+    return true;
+  }
+};
+
+// The model at every sample of `index`.
+std::vector<double> Predict(const MotionModelSpec& spec, const std::vector<double>& p,
+                            const estimation::MotionTrace& trace,
+                            const std::vector<std::size_t>& index) {
+  const Layout l(spec);
+  const FileTerms files(l, spec);
+  const double t_mid = MiddleTime(trace);
+  std::vector<double> out;
+  out.reserve(index.size());
+  for (std::size_t i : index) {
+    const double tau = trace.t_s[i] - t_mid;
+    const double time = trace.t_s[i] - trace.t_s.front();
+    out.push_back(ModelAt(l, spec.terms, p.data(), tau, time) + files.At(p.data(), tau, time));
+  }
+  return out;
+}
 
 std::vector<std::size_t> All(const estimation::MotionTrace& t,
                              const std::vector<std::size_t>& subset) {
@@ -106,6 +215,7 @@ std::vector<double> InitialGuess(const MotionModelSpec& spec, const estimation::
   estimation::HarmonicFitOptions o;
   o.harmonics = spec.harmonics;
   o.trend_order = 0;
+  o.max_rate_hz = kMaxRateHz;
   const estimation::HarmonicFit fit =
       estimation::FitHarmonics(t.data(), x.data(), t.size(), t_mid, o);
   const Layout l(spec);
@@ -121,21 +231,40 @@ std::vector<double> InitialGuess(const MotionModelSpec& spec, const estimation::
     p[static_cast<std::size_t>(l.harm + 2 * (k - 1) + 1)] = -a * std::sin(d) + b * std::cos(d);
   }
   if (l.resp >= 0) p[static_cast<std::size_t>(l.resp + 2)] = 0.25;
+  for (std::size_t j = 0; j < spec.terms.size(); ++j) {
+    const std::vector<double>& start = spec.terms[j].start;
+    std::copy(start.begin(), start.end(), p.begin() + l.term[j]);
+  }
   return p;
 }
 
-void Solve(const Layout& l, const estimation::MotionTrace& trace,
+void Solve(const MotionModelSpec& spec, const estimation::MotionTrace& trace,
            const std::vector<std::size_t>& index, double sigma, std::vector<double>& p,
            ceres::Problem* keep = nullptr) {
-  auto* functor = new Residuals{l, &trace, index, MiddleTime(trace), sigma};
-  auto* cost = new ceres::DynamicAutoDiffCostFunction<Residuals, 8>(functor);
+  const Layout l(spec);
+  const Residuals residuals{l, &spec.terms, &trace, index, MiddleTime(trace), sigma};
+  ceres::DynamicCostFunction* cost = nullptr;
+  if (HasFileTerms(spec)) {
+    cost = new ceres::DynamicNumericDiffCostFunction<NumericResiduals, ceres::CENTRAL>(
+        new NumericResiduals{residuals, std::make_shared<FileTerms>(residuals.layout, spec)});
+  } else {
+    cost = new ceres::DynamicAutoDiffCostFunction<Residuals, 8>(new Residuals(residuals));
+  }
   cost->AddParameterBlock(l.size);
   cost->SetNumResiduals(static_cast<int>(index.size()));
   ceres::Problem local;
   ceres::Problem& problem = keep != nullptr ? *keep : local;
   problem.AddResidualBlock(cost, nullptr, p.data());
-  problem.SetParameterLowerBound(p.data(), l.rate, 0.3);
-  problem.SetParameterUpperBound(p.data(), l.rate, 4.0);
+  problem.SetParameterLowerBound(p.data(), l.rate, kMinRateHz);
+  problem.SetParameterUpperBound(p.data(), l.rate, kMaxRateHz);
+  for (std::size_t j = 0; j < spec.terms.size(); ++j) {
+    const MotionTerm& t = spec.terms[j];
+    for (std::size_t q = 0; q < t.parameters.size(); ++q) {
+      const int at = l.term[j] + static_cast<int>(q);
+      if (std::isfinite(t.lower[q])) problem.SetParameterLowerBound(p.data(), at, t.lower[q]);
+      if (std::isfinite(t.upper[q])) problem.SetParameterUpperBound(p.data(), at, t.upper[q]);
+    }
+  }
   if (l.drift >= 0) {
     problem.SetParameterLowerBound(p.data(), l.drift, -0.1);
     problem.SetParameterUpperBound(p.data(), l.drift, 0.1);
@@ -153,7 +282,9 @@ void Solve(const Layout& l, const estimation::MotionTrace& trace,
   ceres::Solve(so, &problem, &summary);
 }
 
-std::vector<ParameterEstimate> Estimates(const Layout& l, const std::vector<double>& p) {
+std::vector<ParameterEstimate> Estimates(const MotionModelSpec& spec,
+                                         const std::vector<double>& p) {
+  const Layout l(spec);
   std::vector<ParameterEstimate> e;
   e.push_back({"offset", "mm", p[0], std::nan("")});
   e.push_back({"heart_rate", "Hz", p[1], std::nan("")});
@@ -170,6 +301,13 @@ std::vector<ParameterEstimate> Estimates(const Layout& l, const std::vector<doub
     e.push_back({"sin" + std::to_string(k), "mm",
                  p[static_cast<std::size_t>(l.harm + 2 * (k - 1) + 1)], std::nan("")});
   }
+  for (std::size_t j = 0; j < spec.terms.size(); ++j) {
+    const MotionTerm& t = spec.terms[j];
+    for (std::size_t q = 0; q < t.parameters.size(); ++q) {
+      e.push_back({t.name + "." + t.parameters[q], t.units[q],
+                   p[static_cast<std::size_t>(l.term[j]) + q], std::nan("")});
+    }
+  }
   return e;
 }
 
@@ -177,7 +315,7 @@ std::vector<ParameterEstimate> Estimates(const Layout& l, const std::vector<doub
 
 MotionModelSpec ParseMotionModel(const std::string& text) {
   const std::string catalog = " (a motion model is heartbeat:N, N in 1-12, plus any of +" +
-                              std::string("respiration, +rate_drift, +harmonic)");
+                              std::string("respiration, +rate_drift, +harmonic, +@term.json)");
   MotionModelSpec spec;
   std::size_t start = 0;
   bool first = true;
@@ -204,6 +342,8 @@ MotionModelSpec ParseMotionModel(const std::string& text) {
       spec.rate_drift = true;
     } else if (term == "harmonic") {
       spec = WithMotionEffect(spec, "harmonic");
+    } else if (term.size() > 1 && term[0] == '@') {
+      spec.terms.push_back(ReadMotionTerm(term.substr(1)));
     } else {
       throw std::invalid_argument("--model '" + text + "': unknown term '" + term + "'" + catalog);
     }
@@ -213,8 +353,11 @@ MotionModelSpec ParseMotionModel(const std::string& text) {
 }
 
 std::string FormatMotionModel(const MotionModelSpec& s) {
-  return "heartbeat:" + std::to_string(s.harmonics) + (s.respiration ? "+respiration" : "") +
-         (s.rate_drift ? "+rate_drift" : "");
+  std::string out = "heartbeat:" + std::to_string(s.harmonics) +
+                    (s.respiration ? "+respiration" : "") + (s.rate_drift ? "+rate_drift" : "");
+  for (const MotionTerm& t : s.terms)
+    out += t.kind == MotionTermKind::kFile ? "+@" + t.path : "+" + t.name;
+  return out;
 }
 
 std::vector<std::string> MotionEffectNames() { return {"harmonic", "respiration", "rate_drift"}; }
@@ -255,14 +398,11 @@ MotionModelSpec WithMotionEffect(MotionModelSpec s, const std::string& effect) {
 double EvaluateMotionModel(const MotionModelSpec& spec, const std::vector<double>& p,
                            const estimation::MotionTrace& trace, double noise_mm,
                            const std::vector<std::size_t>& subset) {
-  const Layout l(spec);
-  const double t_mid = MiddleTime(trace);
-  double ss = 0.0;
   const std::vector<std::size_t> index = All(trace, subset);
-  for (std::size_t i : index) {
-    ss +=
-        std::pow((ModelAt(l, p.data(), trace.t_s[i] - t_mid) - trace.position_mm[i]) / noise_mm, 2);
-  }
+  const std::vector<double> x = Predict(spec, p, trace, index);
+  double ss = 0.0;
+  for (std::size_t i = 0; i < index.size(); ++i)
+    ss += std::pow((x[i] - trace.position_mm[index[i]]) / noise_mm, 2);
   return ss / static_cast<double>(index.size());
 }
 
@@ -294,16 +434,16 @@ MotionFit FitMotionModel(const MotionModelSpec& spec, const estimation::MotionTr
         if (std::abs(trace.t_s[i] - t_mid) <= 0.5 * fraction * trace.duration_s())
           part.push_back(i);
       }
-      if (part.size() > static_cast<std::size_t>(2 * l.size)) Solve(l, trace, part, noise_mm, p);
+      if (part.size() > static_cast<std::size_t>(2 * l.size)) Solve(spec, trace, part, noise_mm, p);
     }
   }
   ceres::Problem problem;
-  Solve(l, trace, index, noise_mm, p, &problem);
+  Solve(spec, trace, index, noise_mm, p, &problem);
 
   MotionFit fit;
   fit.spec = spec;
   fit.parameters = p;
-  fit.estimates = Estimates(l, p);
+  fit.estimates = Estimates(spec, p);
   ceres::Covariance::Options co;
   co.algorithm_type = ceres::DENSE_SVD;
   co.null_space_rank = -1;
@@ -315,24 +455,19 @@ MotionFit FitMotionModel(const MotionModelSpec& spec, const estimation::MotionTr
     covariance.GetCovarianceBlock(p.data(), p.data(), c.data());
     const double dof = std::max(1.0, static_cast<double>(index.size()) - l.size);
     const double chi2 = mse * static_cast<double>(index.size()) / dof;
-    // Estimates are in layout order: offset, rate, [drift], [resp ×3], harmonics.
+    // Estimates are in layout order: offset, rate, [drift], [resp ×3], harmonics, terms.
     for (std::size_t i = 0; i < fit.estimates.size(); ++i) {
       fit.estimates[i].sd =
           std::sqrt(std::max(c[i * static_cast<std::size_t>(l.size) + i] * chi2, 0.0));
     }
   }
   const double t_mid = MiddleTime(trace);
+  fit.prediction_mm = Predict(spec, p, trace, All(trace, {}));
   double ss = 0.0;
   for (std::size_t i = 0; i < trace.size(); ++i) {
-    const double tau = trace.t_s[i] - t_mid;
-    const double x = ModelAt(l, p.data(), tau);
-    fit.prediction_mm.push_back(x);
-    double phase =
-        kTwoPi * (p[1] * tau +
-                  (l.drift >= 0 ? 0.5 * p[static_cast<std::size_t>(l.drift)] * tau * tau : 0.0));
-    phase = std::fmod(phase, kTwoPi);
+    double phase = std::fmod(PhaseAt(l, p.data(), trace.t_s[i] - t_mid), kTwoPi);
     fit.phase_rad.push_back(phase < 0.0 ? phase + kTwoPi : phase);
-    ss += std::pow(x - trace.position_mm[i], 2);
+    ss += std::pow(fit.prediction_mm[i] - trace.position_mm[i], 2);
   }
   fit.rms_mm = std::sqrt(ss / static_cast<double>(trace.size()));
   fit.mse_norm = mse;
@@ -354,6 +489,21 @@ std::vector<double> StartMotionParameters(const MotionModelSpec& to, const Motio
     p[static_cast<std::size_t>(b.harm + 2 * k)] = q[static_cast<std::size_t>(a.harm + 2 * k)];
     p[static_cast<std::size_t>(b.harm + 2 * k + 1)] =
         q[static_cast<std::size_t>(a.harm + 2 * k + 1)];
+  }
+  // Terms: the same term's fitted values, else its start values.
+  for (std::size_t j = 0; j < to.terms.size(); ++j) {
+    const MotionTerm& t = to.terms[j];
+    std::copy(t.start.begin(), t.start.end(), p.begin() + b.term[j]);
+    for (std::size_t i = 0; i < from.spec.terms.size(); ++i) {
+      const MotionTerm& u = from.spec.terms[i];
+      if (u.kind == t.kind && u.harmonic == t.harmonic && u.name == t.name && u.path == t.path &&
+          u.parameters.size() == t.parameters.size()) {
+        std::copy(q.begin() + a.term[i],
+                  q.begin() + a.term[i] + static_cast<std::ptrdiff_t>(u.parameters.size()),
+                  p.begin() + b.term[j]);
+        break;
+      }
+    }
   }
   if (b.resp >= 0) {
     if (a.resp >= 0) {

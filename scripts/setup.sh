@@ -7,7 +7,7 @@ packages=(
   g++ cmake ninja-build
   clang-14 libclang-rt-14-dev llvm-14 clang-format-14 lld
   libgtest-dev libgmock-dev libbenchmark-dev
-  libeigen3-dev libceres-dev nlohmann-json3-dev libcli11-dev
+  libeigen3-dev libceres-dev nlohmann-json3-dev libcli11-dev libmuparser-dev
   chromium
   libvtk9-dev
   libembree-dev

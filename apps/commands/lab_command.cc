@@ -2,18 +2,22 @@
 #include "apps/commands/lab_command.h"
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
+#include "apps/commands/effect_catalog_flags.h"
 #include "apps/commands/lab_motion.h"
 #include "apps/output.h"
 #include "hw/effect_registry.h"
+#include "lab/catheter_where.h"
 #include "lab/diagnosis.h"
 #include "lab/lab_report.h"
 #include "lab/model_fit.h"
@@ -28,8 +32,61 @@ struct LabFlags {
   bool json = false;
   int stride = 4;
   std::string residuals_dir;
-  std::string column;  // motion traces only
+  std::string column;                   // motion traces only
+  std::string propose_dir;              // where `diagnose` writes a proposed effect file
+  std::vector<std::string> candidates;  // extra candidates: effect files (@path) or plugin effects
+  CatalogFlags catalog;
 };
+
+// The effect catalog (built-ins, plugins, and the effect files the SPEC names) and the
+// model's effects.
+struct Model {
+  hw::EffectRegistry* catalog;
+  std::vector<std::string> effects;
+  std::string spec;  // printable, files as @path
+};
+
+Model ResolveModel(const LabFlags& f) {
+  Model m;
+  m.catalog = &BuildCatalog(f.catalog);
+  m.effects = hw::ResolveModelSpec(f.model, *m.catalog);
+  m.spec = hw::FormatModelSpec(m.effects, *m.catalog);
+  return m;
+}
+
+// The diagnosis's candidates: every catalog effect not in the model plus the user's
+// (--candidate). A user candidate that cannot be read is skipped and reported, the
+// diagnosis goes on with the others.
+std::vector<std::string> Candidates(const LabFlags& f, const Model& m,
+                                    std::vector<std::string>& skipped) {
+  std::vector<std::string> out;
+  for (const std::string& e : m.catalog->Names()) {
+    if (std::find(m.effects.begin(), m.effects.end(), e) == m.effects.end() &&
+        m.catalog->Source(e).empty())
+      out.push_back(e);
+  }
+  for (const std::string& token : f.candidates) {
+    try {
+      for (const std::string& e : hw::ResolveModelSpec(token, *m.catalog)) {
+        if (std::find(m.effects.begin(), m.effects.end(), e) == m.effects.end() &&
+            std::find(out.begin(), out.end(), e) == out.end())
+          out.push_back(e);
+      }
+    } catch (const std::exception& e) {
+      skipped.push_back(token + ": " + e.what());
+      std::cerr << "echoservo: skipped candidate " << token << ": " << e.what() << "\n";
+    }
+  }
+  return out;
+}
+
+// Default folder of proposals: beside the dataset, "<dataset>_proposal".
+std::string ProposeDir(const LabFlags& f) {
+  if (!f.propose_dir.empty()) return f.propose_dir;
+  std::filesystem::path p = std::filesystem::path(f.dataset).lexically_normal();
+  if (p.filename().empty()) p = p.parent_path();
+  return p.string() + "_proposal";
+}
 
 // A regular file is a target-motion trace (the motion lab); a folder a catheter dataset.
 bool IsMotionTrace(const LabFlags& f, MotionLabFlags& m) {
@@ -59,8 +116,9 @@ lab::LabDataset Load(const LabFlags& f) {
 }
 
 // Progress lines go to stderr, and only once the command has run for more than a second.
-lab::FitOptions Options() {
+lab::FitOptions Options(const Model& m) {
   lab::FitOptions o;
+  o.registry = m.catalog;
   const auto start = std::chrono::steady_clock::now();
   o.progress = [start](const std::string& line) {
     if (std::chrono::steady_clock::now() - start > std::chrono::seconds(1)) {
@@ -104,6 +162,29 @@ nlohmann::json GroupsJson(const std::vector<lab::GroupStat>& groups) {
   return out;
 }
 
+nlohmann::json WhereJson(const std::vector<lab::WhereEntry>& where) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& e : where) {
+    out.push_back({{"channel", e.channel},
+                   {"variable", e.variable},
+                   {"explained_fraction", e.explained_fraction},
+                   {"gain_noise_var", e.gain}});
+  }
+  return out;
+}
+
+void PrintWhere(const std::vector<lab::WhereEntry>& where, std::size_t per_channel) {
+  std::cout << "\nwhere the held-out residual lives (share of each channel's excess a smooth "
+               "function of the variable explains on other trials):\n";
+  Table t({"channel", "variable", "explained", "gain (noise var)"});
+  std::map<std::string, std::size_t> shown;
+  for (const auto& e : where) {
+    if (shown[e.channel]++ >= per_channel) continue;
+    t.AddRow({e.channel, e.variable, PercentOrDash(e.explained_fraction), Fixed(e.gain, 2)});
+  }
+  t.Print(std::cout);
+}
+
 nlohmann::json BreakdownJson(const lab::Breakdown& b) {
   return {{"phase", GroupsJson(b.phase)},       {"speed", GroupsJson(b.speed)},
           {"gap", GroupsJson(b.gap)},           {"bend", GroupsJson(b.bend)},
@@ -125,10 +206,17 @@ void PrintGroups(const char* title, const std::vector<lab::GroupStat>& groups) {
 void RunCompare(const LabFlags& f) {
   if (MotionLabFlags m; IsMotionTrace(f, m)) return RunMotionCompare(m);
   const lab::LabDataset ds = Load(f);
-  const auto effects = hw::ParseModelSpec(f.model, hw::EffectRegistry::WithBuiltinEffects());
-  const lab::FitResult r = lab::FitModel(effects, ds, Options());
+  const Model model = ResolveModel(f);
+  const auto& effects = model.effects;
+  const lab::FitResult r = lab::FitModel(effects, ds, Options(model));
   if (!f.residuals_dir.empty()) WriteResiduals(f.residuals_dir, ds, r);
   const lab::Breakdown breakdown = lab::ComputeBreakdown(ds, r);
+  // Where: the fit's own residuals (compare fits once), each variable's function learnt on
+  // other trials.
+  std::vector<lab::Prediction> predictions;
+  for (const auto& t : r.trials) predictions.push_back(t.prediction);
+  const std::vector<lab::WhereEntry> where = lab::LocateResidual(
+      lab::BuildResidualTable(ds, predictions, 2), r.tip_mse_norm - 1.0, r.force_mse_norm - 1.0);
   if (f.json) {
     nlohmann::json trials = nlohmann::json::array();
     for (const auto& t : r.trials) {
@@ -140,7 +228,7 @@ void RunCompare(const LabFlags& f) {
                         {"tip_offset_mm", t.nuisance.tip_offset_mm},
                         {"contact", t.nuisance.contact}});
     }
-    std::cout << nlohmann::json{{"model", hw::FormatModelSpec(effects)},
+    std::cout << nlohmann::json{{"model", model.spec},
                                 {"rms_mm", r.overall.tip_rms_mm},
                                 {"mae_mm", r.overall.tip_mae_mm},
                                 {"max_mm", r.overall.tip_max_mm},
@@ -150,15 +238,16 @@ void RunCompare(const LabFlags& f) {
                                 {"params", ParamsJson(r)},
                                 {"trials", trials},
                                 {"breakdown", BreakdownJson(breakdown)},
+                                {"where", WhereJson(where)},
                                 {"skipped", ds.skipped},
                                 {"fit_seconds", r.seconds}}
                      .dump(2)
               << "\n";
     return;
   }
-  std::cout << "model " << hw::FormatModelSpec(effects) << ": tip RMS "
-            << Fixed(r.overall.tip_rms_mm, 4) << " mm, MAE " << Fixed(r.overall.tip_mae_mm, 4)
-            << " mm, max " << Fixed(r.overall.tip_max_mm, 3) << " mm; force RMS "
+  std::cout << "model " << model.spec << ": tip RMS " << Fixed(r.overall.tip_rms_mm, 4)
+            << " mm, MAE " << Fixed(r.overall.tip_mae_mm, 4) << " mm, max "
+            << Fixed(r.overall.tip_max_mm, 3) << " mm; force RMS "
             << Fixed(r.overall.force_rms_n, 4) << " N (noise: tip " << Fixed(ds.noise.tip_mm, 4)
             << " mm, force " << Fixed(ds.noise.force_n, 4) << " N)\n\n";
   Table p({"parameter", "value", "sd", "unit"});
@@ -178,54 +267,79 @@ void RunCompare(const LabFlags& f) {
   PrintGroups("gap", breakdown.gap);
   PrintGroups("total bend angle", breakdown.bend);
   PrintGroups("tip load", breakdown.tip_load);
+  PrintWhere(where, 4);
 }
 
-nlohmann::json DiagnosisJson(const lab::Diagnosis& d) {
+nlohmann::json DiagnosisJson(const lab::Diagnosis& d, const lab::LabDataset& ds, const Model& m) {
   nlohmann::json candidates = nlohmann::json::array();
   for (const auto& c : d.candidates) {
-    candidates.push_back({{"effect", c.effect},
-                          {"rms_mm", c.fit.overall.tip_rms_mm},
-                          {"mae_mm", c.fit.overall.tip_mae_mm},
-                          {"force_rms_n", c.fit.overall.force_rms_n},
-                          {"cv_tip_mse_noise", c.cv.tip_mse},
-                          {"cv_force_mse_noise", c.cv.force_mse},
-                          {"tip_explained", NullIfNan(c.tip_explained)},
-                          {"force_explained", NullIfNan(c.force_explained)},
-                          {"score", c.score},
-                          {"significant", c.significant},
-                          {"channel", c.channel},
-                          {"params", ParamsJson(c.fit)},
-                          {"evidence", c.evidence}});
+    candidates.push_back(
+        {{"effect", c.effect},
+         {"replaces", c.replaces.empty() ? nlohmann::json(nullptr) : nlohmann::json(c.replaces)},
+         {"rms_mm", c.fit.overall.tip_rms_mm},
+         {"mae_mm", c.fit.overall.tip_mae_mm},
+         {"force_rms_n", c.fit.overall.force_rms_n},
+         {"cv_tip_mse_noise", c.cv.tip_mse},
+         {"cv_force_mse_noise", c.cv.force_mse},
+         {"tip_explained", NullIfNan(c.tip_explained)},
+         {"force_explained", NullIfNan(c.force_explained)},
+         {"score", c.score},
+         {"significant", c.significant},
+         {"channel", c.channel},
+         {"params", ParamsJson(c.fit)},
+         {"evidence", c.evidence}});
   }
-  return {{"model", hw::FormatModelSpec(d.model)},
-          {"rms_mm", d.base.overall.tip_rms_mm},
-          {"mae_mm", d.base.overall.tip_mae_mm},
-          {"force_rms_n", d.base.overall.force_rms_n},
-          {"cv_tip_mse_noise", d.base_cv.tip_mse},
-          {"cv_force_mse_noise", d.base_cv.force_mse},
-          {"params", ParamsJson(d.base)},
-          {"adequate", d.adequate},
-          {"verdict", d.verdict},
-          {"candidates", candidates}};
+  nlohmann::json j = {{"model", hw::FormatModelSpec(d.model, *m.catalog)},
+                      {"rms_mm", d.base.overall.tip_rms_mm},
+                      {"mae_mm", d.base.overall.tip_mae_mm},
+                      {"force_rms_n", d.base.overall.force_rms_n},
+                      {"cv_tip_mse_noise", d.base_cv.tip_mse},
+                      {"cv_force_mse_noise", d.base_cv.force_mse},
+                      {"params", ParamsJson(d.base)},
+                      {"adequate", d.adequate},
+                      {"verdict", d.verdict},
+                      {"summary", d.summary},
+                      {"noise", {{"tip_mm", ds.noise.tip_mm}, {"force_n", ds.noise.force_n}}},
+                      {"excess", {{"tip", d.tip_excess}, {"force", d.force_excess}}},
+                      {"where", WhereJson(d.where)},
+                      {"candidates", candidates}};
+  if (d.proposal) {
+    const lab::Proposal& p = *d.proposal;
+    j["proposal"] = {{"spec", p.spec},
+                     {"file", p.file},
+                     {"equation", p.equation},
+                     {"terms", p.terms},
+                     {"rms_mm", p.rms_mm},
+                     {"force_rms_n", p.force_rms_n},
+                     {"cv_tip_mse_noise", p.cv.tip_mse},
+                     {"cv_force_mse_noise", p.cv.force_mse},
+                     {"params", ParamsJson(p.fit)}};
+  } else {
+    j["proposal"] = nullptr;
+  }
+  return j;
 }
 
 void RunDiagnose(const LabFlags& f) {
-  if (MotionLabFlags m; IsMotionTrace(f, m)) return RunMotionDiagnose(m);
+  if (MotionLabFlags m; IsMotionTrace(f, m)) return RunMotionDiagnose(m, f.propose_dir);
   const lab::LabDataset ds = Load(f);
-  const auto effects = hw::ParseModelSpec(f.model, hw::EffectRegistry::WithBuiltinEffects());
+  const Model model = ResolveModel(f);
+  const auto& effects = model.effects;
   lab::DiagnoseOptions o;
-  o.fit = Options();
+  o.fit = Options(model);
+  o.propose_dir = ProposeDir(f);
+  std::vector<std::string> skipped_candidates;
+  o.candidates = Candidates(f, model, skipped_candidates);
   const lab::Diagnosis d = lab::Diagnose(effects, ds, o);
   if (f.json) {
-    nlohmann::json j = DiagnosisJson(d);
-    j["noise"] = {{"tip_mm", ds.noise.tip_mm}, {"force_n", ds.noise.force_n}};
+    nlohmann::json j = DiagnosisJson(d, ds, model);
     j["skipped"] = ds.skipped;
+    j["skipped_candidates"] = skipped_candidates;
     std::cout << j.dump(2) << "\n";
     return;
   }
-  std::cout << "model " << hw::FormatModelSpec(effects) << ": tip RMS "
-            << Fixed(d.base.overall.tip_rms_mm, 4) << " mm, force RMS "
-            << Fixed(d.base.overall.force_rms_n, 4) << " N (noise: tip "
+  std::cout << "model " << model.spec << ": tip RMS " << Fixed(d.base.overall.tip_rms_mm, 4)
+            << " mm, force RMS " << Fixed(d.base.overall.force_rms_n, 4) << " N (noise: tip "
             << Fixed(ds.noise.tip_mm, 4) << " mm, force " << Fixed(ds.noise.force_n, 4)
             << " N)\n\n";
   Table t({"rank", "candidate", "tip_rms_mm", "force_rms_n", "held-out tip excess removed",
@@ -237,10 +351,26 @@ void RunDiagnose(const LabFlags& f) {
               PercentOrDash(c.force_explained), c.significant ? "yes" : "no"});
   }
   t.Print(std::cout);
-  std::cout << "\n" << (d.adequate ? "ADEQUATE" : "MISSING") << ": " << d.verdict << "\n";
-  if (!d.adequate) {
+  PrintWhere(d.where, 3);
+  std::cout << "\n"
+            << (d.verdict == "adequate"         ? "ADEQUATE"
+                : d.verdict == "missing_effect" ? "MISSING EFFECT"
+                                                : "UNEXPLAINED")
+            << ": " << d.summary << "\n";
+  if (d.verdict == "missing_effect") {
+    std::vector<std::string> next = effects;
+    std::erase(next, d.candidates.front().replaces);
+    next.push_back(d.candidates.front().effect);
     std::cout << "\nnext: echoservo lab compare " << f.dataset << " --model "
-              << hw::FormatModelSpec(effects) << "+" << d.candidates.front().effect << "\n";
+              << hw::FormatModelSpec(hw::ResolveModelSpec(hw::FormatModelSpec(next, *model.catalog),
+                                                          *model.catalog),
+                                     *model.catalog)
+              << "\n";
+  } else if (d.proposal) {
+    std::cout << "\nproposed effect written to " << d.proposal->file << " (held-out tip RMS "
+              << Fixed(d.proposal->rms_mm, 4) << " mm, force RMS "
+              << Fixed(d.proposal->force_rms_n, 4) << " N)\nnext: echoservo lab compare "
+              << f.dataset << " --model " << d.proposal->spec << "\n";
   }
 }
 
@@ -260,6 +390,7 @@ void AddCommon(CLI::App* cmd, LabFlags& f) {
   cmd->add_option("--stride", f.stride,
                   "Use every N-th sample as a residual (default 4: 250 Hz from 1 kHz)");
   cmd->add_flag("--json", f.json, "Print JSON");
+  AddCatalogFlags(cmd, f.catalog);
 }
 
 // ---- `lab report`: the error ladder, diagnosis and plots as one self-contained HTML page.
@@ -273,9 +404,11 @@ struct LabReportFlags {
 
 void RunLabReport(const LabReportFlags& f) {
   const lab::LabDataset ds = Load(f.common);
-  const auto effects = hw::ParseModelSpec(f.common.model, hw::EffectRegistry::WithBuiltinEffects());
+  const Model model = ResolveModel(f.common);
+  const auto& effects = model.effects;
   lab::DiagnoseOptions o;
-  o.fit = Options();
+  o.fit = Options(model);
+  o.propose_dir = ProposeDir(f.common);
   const std::vector<lab::LadderStep> ladder = lab::ErrorLadder(effects, ds, o, f.max_rounds);
   lab::LabReportOptions ro;
   ro.dataset_path = f.common.dataset;
@@ -285,14 +418,15 @@ void RunLabReport(const LabReportFlags& f) {
   o.fit.progress("report: writing " + f.out);
   WriteFileAtomically(f.out, lab::RenderLabReport(ds, ladder, ro));
   std::vector<std::string> models;
-  for (const auto& step : ladder) models.push_back(hw::FormatModelSpec(step.model));
+  for (const auto& step : ladder) models.push_back(hw::FormatModelSpec(step.model, *model.catalog));
   const bool adequate = ladder.back().diagnosis.adequate;
   if (f.common.json) {
     std::cout << nlohmann::json{{"report", f.out},
                                 {"ladder", models},
                                 {"final_model", models.back()},
                                 {"adequate", adequate},
-                                {"verdict", ladder.back().diagnosis.verdict}}
+                                {"verdict", ladder.back().diagnosis.verdict},
+                                {"summary", ladder.back().diagnosis.summary}}
                      .dump(2)
               << "\n";
     return;
@@ -338,6 +472,13 @@ void AddLabCommands(CLI::App& app) {
   auto* diagnose = lab->add_subcommand(
       "diagnose", "Refit the model plus each missing catalog effect; rank them on held-out trials");
   AddCommon(diagnose, *dflags);
+  diagnose->add_option("--candidate", dflags->candidates,
+                       "Also try this effect as a candidate: an effect file as @path/effect.json "
+                       "or a plugin's effect (repeatable); one that cannot be read is skipped "
+                       "and reported");
+  diagnose->add_option("--propose-dir", dflags->propose_dir,
+                       "Where a proposed effect file is written when the verdict is unexplained "
+                       "(default: DATASET_proposal beside the dataset)");
   diagnose->callback([dflags] { RunDiagnose(*dflags); });
   AddReportCommand(lab);
 }

@@ -37,6 +37,33 @@ nlohmann::json GroupsJson(const std::vector<lab::MotionGroup>& groups) {
   return out;
 }
 
+nlohmann::json MotionWhereJson(const std::vector<lab::WhereEntry>& where) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& e : where) {
+    out.push_back({{"channel", e.channel},
+                   {"variable", e.variable},
+                   {"explained_fraction", e.explained_fraction},
+                   {"gain_noise_var", e.gain}});
+  }
+  return out;
+}
+
+nlohmann::json MotionNoiseJson(const lab::MotionNoise& n) {
+  return {{"position_mm", n.position_mm},
+          {"difference_mm", Nullable(n.difference_mm)},
+          {"difference_order", n.difference_order},
+          {"local_fit_mm", Nullable(n.local_fit_mm)}};
+}
+
+void PrintMotionWhere(const std::vector<lab::WhereEntry>& where, double excess) {
+  std::cout << "\nwhere the held-out residual lies (excess " << Fixed(excess, 2)
+            << " noise variances):\n";
+  Table t({"variable", "gain_noise_var", "share_of_excess"});
+  for (const auto& e : where)
+    t.AddRow({e.variable, Fixed(e.gain, 3), Fixed(100 * e.explained_fraction, 0) + "%"});
+  t.Print(std::cout);
+}
+
 void PrintGroups(const char* title, const std::vector<lab::MotionGroup>& groups) {
   std::cout << "\nby " << title << ":\n";
   Table t({"group", "samples", "rms_mm", "share_of_samples", "share_of_error_sq"});
@@ -52,16 +79,25 @@ void PrintGroups(const char* title, const std::vector<lab::MotionGroup>& groups)
 void RunMotionCompare(const MotionLabFlags& f) {
   const estimation::MotionTrace trace = estimation::ReadMotionTrace(f.trace, f.column);
   const lab::MotionModelSpec spec = Spec(f);
-  const double noise = lab::MotionLabNoise(spec, trace);
+  const lab::MotionNoise n = lab::EstimateMotionNoise(trace);
+  const double noise = n.position_mm;
   const lab::MotionFit fit = lab::FitMotionModel(spec, trace, noise);
   const lab::MotionBreakdown b = lab::ComputeMotionBreakdown(trace, fit);
+  const lab::MotionDiagnoseOptions o;
+  const lab::MotionHeldOut held = lab::HeldOutMotion(spec, trace, noise, o, &fit.parameters);
+  const std::vector<lab::WhereEntry> where = lab::MotionWhere(trace, fit, held, n, o.block_s);
   if (f.json) {
     std::cout << nlohmann::json{{"trace", f.trace},
                                 {"column", trace.column},
                                 {"model", lab::FormatMotionModel(spec)},
                                 {"rms_mm", fit.rms_mm},
                                 {"noise_mm", noise},
+                                {"noise", MotionNoiseJson(n)},
                                 {"mse_noise", fit.mse_norm},
+                                {"cv_mse_noise", held.mse},
+                                {"held_out_rms_mm", std::sqrt(held.mse) * noise},
+                                {"excess", {{"position", held.mse - 1.0}}},
+                                {"where", MotionWhereJson(where)},
                                 {"params", ParamsJson(fit)},
                                 {"breakdown",
                                  {{"cardiac_phase", GroupsJson(b.cardiac_phase)},
@@ -78,15 +114,19 @@ void RunMotionCompare(const MotionLabFlags& f) {
   for (const auto& e : fit.estimates)
     p.AddRow({e.name, Fixed(e.value, 5), std::isfinite(e.sd) ? Fixed(e.sd, 5) : "-", e.unit});
   p.Print(std::cout);
+  std::cout << "\nheld-out RMS " << Fixed(std::sqrt(held.mse) * noise, 4) << " mm\n";
+  PrintMotionWhere(where, held.mse - 1.0);
   std::cout << "\nWhere the model fails (share of the squared residual):";
   PrintGroups("cardiac phase", b.cardiac_phase);
   PrintGroups("time", b.time);
 }
 
-void RunMotionDiagnose(const MotionLabFlags& f) {
+void RunMotionDiagnose(const MotionLabFlags& f, const std::string& propose_dir) {
   const estimation::MotionTrace trace = estimation::ReadMotionTrace(f.trace, f.column);
   const lab::MotionModelSpec spec = Spec(f);
-  const lab::MotionDiagnosis d = lab::DiagnoseMotion(spec, trace);
+  lab::MotionDiagnoseOptions o;
+  o.propose_dir = propose_dir;
+  const lab::MotionDiagnosis d = lab::DiagnoseMotion(spec, trace, o);
   if (f.json) {
     nlohmann::json candidates = nlohmann::json::array();
     for (const auto& c : d.candidates) {
@@ -99,18 +139,31 @@ void RunMotionDiagnose(const MotionLabFlags& f) {
                             {"params", ParamsJson(c.fit)},
                             {"evidence", c.evidence}});
     }
-    std::cout << nlohmann::json{{"trace", f.trace},
-                                {"column", trace.column},
-                                {"model", lab::FormatMotionModel(spec)},
-                                {"rms_mm", d.base.rms_mm},
-                                {"noise_mm", d.noise_mm},
-                                {"cv_mse_noise", d.base_cv_mse},
-                                {"params", ParamsJson(d.base)},
-                                {"adequate", d.adequate},
-                                {"verdict", d.verdict},
-                                {"candidates", candidates}}
-                     .dump(2)
-              << "\n";
+    nlohmann::json j{{"trace", f.trace},
+                     {"column", trace.column},
+                     {"model", lab::FormatMotionModel(spec)},
+                     {"rms_mm", d.base.rms_mm},
+                     {"noise_mm", d.noise_mm},
+                     {"noise", MotionNoiseJson(d.noise)},
+                     {"cv_mse_noise", d.base_cv_mse},
+                     {"held_out_rms_mm", d.held_out_rms_mm},
+                     {"excess", {{"position", d.excess}}},
+                     {"params", ParamsJson(d.base)},
+                     {"adequate", d.adequate},
+                     {"verdict", d.verdict},
+                     {"summary", d.summary},
+                     {"where", MotionWhereJson(d.where)},
+                     {"candidates", candidates}};
+    if (d.proposal) {
+      j["proposal"] = {{"spec", d.proposal->spec},
+                       {"file", d.proposal->file},
+                       {"equation", d.proposal->equation},
+                       {"terms", d.proposal->terms},
+                       {"rms_mm", d.proposal->rms_mm},
+                       {"cv_mse_noise", d.proposal->cv_mse},
+                       {"params", ParamsJson(d.proposal->fit)}};
+    }
+    std::cout << j.dump(2) << "\n";
     return;
   }
   std::cout << "model " << lab::FormatMotionModel(spec) << ": position RMS "
@@ -123,7 +176,17 @@ void RunMotionDiagnose(const MotionLabFlags& f) {
               c.significant ? "yes" : "no"});
   }
   t.Print(std::cout);
-  std::cout << "\n" << (d.adequate ? "ADEQUATE" : "MISSING") << ": " << d.verdict << "\n";
+  PrintMotionWhere(d.where, d.excess);
+  std::cout << "\nverdict: " << d.verdict << "\n" << d.summary << "\n";
+  if (d.proposal) {
+    std::cout << "\nproposal (" << d.proposal->file << "): " << d.proposal->equation
+              << "\nheld-out RMS " << Fixed(d.proposal->rms_mm, 4) << " mm (noise "
+              << Fixed(d.noise_mm, 4) << " mm)\nnext: echoservo lab compare " << f.trace
+              << " --model " << d.proposal->spec << "\n";
+  } else if (d.verdict == "missing_effect") {
+    std::cout << "\nnext: echoservo lab compare " << f.trace << " --model "
+              << lab::FormatMotionModel(spec) << "+" << d.candidates.front().effect << "\n";
+  }
 }
 
 }  // namespace echoservo::apps

@@ -1,5 +1,7 @@
 // `lab compare|diagnose` on a target-motion trace (a CSV file instead of a dataset
-// folder): the motion lab (lab/motion_diagnosis.h).
+// folder): the motion lab (lab/motion_diagnosis.h). Text or JSON on stdout; `diagnose`
+// writes a proposed motion-term file into `propose_dir` (empty: "<trace stem>_proposal"
+// beside the trace) when the verdict is unexplained.
 #pragma once
 
 #include <string>
@@ -14,6 +16,6 @@ struct MotionLabFlags {
 };
 
 void RunMotionCompare(const MotionLabFlags& flags);
-void RunMotionDiagnose(const MotionLabFlags& flags);
+void RunMotionDiagnose(const MotionLabFlags& flags, const std::string& propose_dir = "");
 
 }  // namespace echoservo::apps

@@ -8,9 +8,12 @@
 namespace echoservo::apps {
 
 std::vector<std::string> PlantFlags::Effects() const {
+  hw::EffectRegistry& registry = BuildCatalog(catalog);
   if (effects.empty()) return {};
-  return hw::ParseModelSpec(effects, hw::EffectRegistry::WithBuiltinEffects());
+  return hw::ResolveModelSpec(effects, registry);
 }
+
+const hw::EffectRegistry& PlantFlags::Registry() const { return BuildCatalog(catalog); }
 
 std::vector<std::pair<std::string, double>> PlantFlags::Parameters() const {
   std::vector<std::pair<std::string, double>> out;
@@ -21,7 +24,8 @@ std::vector<std::pair<std::string, double>> PlantFlags::Parameters() const {
 void AddPlantFlags(CLI::App* app, PlantFlags& flags) {
   app->add_option("--effects", flags.effects,
                   "Effects of the simulated catheter as a model SPEC, e.g. seed+capstan_friction "
-                  "(see `echoservo sim effects`)");
+                  "or seed+@my_effect.json (see `echoservo sim effects`, docs/effect_files.md)");
+  AddCatalogFlags(app, flags.catalog);
   app->add_option(
       "--set", flags.sets,
       "Override an effect parameter, e.g. --set deadzone_traversal.tau_s=0.01 (repeatable)");

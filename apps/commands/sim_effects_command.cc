@@ -1,19 +1,32 @@
 // `echoservo sim effects`: the catalog of catheter effects (hw/effects/) with their physics,
-// parameters (units, defaults, bounds) and signature in data (docs/effects.md).
+// parameters (units, defaults, bounds) and signature in data (docs/effects.md), plus the
+// effects of --plugin FILE.so and --effect-file FILE.json (docs/effect_files.md).
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "apps/commands/effect_catalog_flags.h"
 #include "apps/commands/sim_command.h"
+#include "hw/effect_file.h"
 #include "hw/effect_registry.h"
 
 namespace echoservo::apps {
 namespace {
 
-void RunEffects(bool json) {
-  const hw::EffectRegistry registry = hw::EffectRegistry::WithBuiltinEffects();
+struct EffectsFlags {
+  bool json = false;
+  CatalogFlags catalog;
+  std::vector<std::string> files;
+};
+
+void RunEffects(const EffectsFlags& f) {
+  const bool json = f.json;
+  hw::EffectRegistry& registry = BuildCatalog(f.catalog);
+  std::string spec;
+  for (const std::string& file : f.files) spec += (spec.empty() ? "@" : "+@") + file;
+  if (!spec.empty()) hw::ResolveModelSpec(spec, registry);
   nlohmann::json out = nlohmann::json::array();
   for (const std::string& name : registry.Names()) {
     const auto effect = registry.Create(name);
@@ -31,6 +44,7 @@ void RunEffects(bool json) {
                    {"description", std::string(effect->description())},
                    {"signature", std::string(effect->signature())},
                    {"parameters", params},
+                   {"source", registry.Source(name)},
                    {"in_seed_model", std::find(hw::SeedEffects().begin(), hw::SeedEffects().end(),
                                                name) != hw::SeedEffects().end()}});
   }
@@ -40,8 +54,11 @@ void RunEffects(bool json) {
   }
   for (const auto& e : out) {
     std::cout << e["name"].get<std::string>() << "  [" << e["stage"].get<std::string>() << "]"
-              << (e["in_seed_model"].get<bool>() ? "  (seed)" : "") << "\n  "
-              << e["description"].get<std::string>()
+              << (e["in_seed_model"].get<bool>() ? "  (seed)" : "")
+              << (e["source"].get<std::string>().empty()
+                      ? ""
+                      : "  (@" + e["source"].get<std::string>() + ")")
+              << "\n  " << e["description"].get<std::string>()
               << "\n  in data: " << e["signature"].get<std::string>() << "\n";
     for (const auto& p : e["parameters"]) {
       std::cout << "    " << p["name"].get<std::string>() << " [" << p["unit"].get<std::string>()
@@ -56,11 +73,14 @@ void RunEffects(bool json) {
 }  // namespace
 
 void AddSimEffects(CLI::App* sim) {
-  auto json = std::make_shared<bool>(false);
+  auto flags = std::make_shared<EffectsFlags>();
   auto* cmd = sim->add_subcommand(
       "effects", "List the catalog of catheter effects with their physics and parameters");
-  cmd->add_flag("--json", *json, "Print JSON");
-  cmd->callback([json] { RunEffects(*json); });
+  cmd->add_flag("--json", flags->json, "Print JSON");
+  AddCatalogFlags(cmd, flags->catalog);
+  cmd->add_option("--effect-file", flags->files,
+                  "Also list the effect of FILE.json (repeatable; docs/effect_files.md)");
+  cmd->callback([flags] { RunEffects(*flags); });
 }
 
 }  // namespace echoservo::apps

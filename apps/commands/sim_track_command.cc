@@ -47,6 +47,7 @@ nlohmann::json RunOne(const TrackFlags& f, const std::string& trajectory,
   o.metrics_start_s = f.metrics_start_s;
   o.iterations = f.iterations;
   hw::SelectEffects(o.plant, f.plant.Effects(), f.plant.Parameters());
+  o.plant.registry = &f.plant.Registry();
   o.plant.seed = f.plant.seed;
   o.servo = control::SeedServoConfig(o.plant, o.friction_feedforward);
   const control::TrackResult r = control::RunTrackExperiment(o);

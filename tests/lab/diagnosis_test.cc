@@ -84,7 +84,8 @@ TEST_P(HiddenEffectIsFound, RankedFirstSignificantAndHalvesTheError) {
   EXPECT_EQ(best.effect, GetParam().effect) << Describe(d);
   EXPECT_TRUE(best.significant) << Describe(d);
   EXPECT_FALSE(d.adequate);
-  EXPECT_NE(d.verdict.find(GetParam().effect), std::string::npos) << d.verdict;
+  EXPECT_EQ(d.verdict, "missing_effect");
+  EXPECT_NE(d.summary.find(GetParam().effect), std::string::npos) << d.summary;
   EXPECT_FALSE(best.evidence.empty());
 
   // In the channel the effect affects, SPEC+effect removes at least half of the error
@@ -137,7 +138,7 @@ TEST(Diagnose, SeedDataIsAdequateForTheSeedModel) {
   const LabDataset ds = Record(r);
   const Diagnosis d = Diagnose(Seed(), ds, DiagnoseOptions{});
   EXPECT_TRUE(d.adequate) << Describe(d);
-  EXPECT_NE(d.verdict.find("adequate"), std::string::npos) << d.verdict;
+  EXPECT_EQ(d.verdict, "adequate") << d.summary;
   for (const Candidate& c : d.candidates) EXPECT_FALSE(c.significant) << c.effect;
   // The held-out residual is the noise: about one noise variance per channel.
   EXPECT_LT(d.base_cv.tip_mse, 1.0 + DiagnoseOptions{}.min_excess);

@@ -42,16 +42,18 @@ TEST_P(MotionDiagnose, NamesTheHiddenEffect) {
   const MotionDiagnosis d = DiagnoseMotion(ParseMotionModel(h.model), trace);
   EXPECT_NEAR(d.noise_mm, 0.3, 0.05);  // the synthetic noise σ
   if (std::string(h.expected).empty()) {
-    EXPECT_TRUE(d.adequate) << d.verdict;
+    EXPECT_TRUE(d.adequate) << d.summary;
+    EXPECT_EQ(d.verdict, "adequate");
     EXPECT_NEAR(d.base.rms_mm, 0.3, 0.05);
     return;
   }
-  ASSERT_FALSE(d.adequate) << d.verdict;
-  EXPECT_EQ(d.candidates.front().effect, h.expected) << d.verdict;
+  ASSERT_FALSE(d.adequate) << d.summary;
+  EXPECT_EQ(d.verdict, "missing_effect") << d.summary;
+  EXPECT_EQ(d.candidates.front().effect, h.expected) << d.summary;
   // The winner brings the residual down to the noise; the others are not significant.
   EXPECT_NEAR(d.candidates.front().fit.rms_mm, 0.3, 0.05);
   for (std::size_t i = 1; i < d.candidates.size(); ++i) EXPECT_FALSE(d.candidates[i].significant);
-  ExpectContains(d.verdict, std::string("missing effect: ") + h.expected);
+  ExpectContains(d.summary, std::string("missing effect: ") + h.expected);
 }
 
 INSTANTIATE_TEST_SUITE_P(
