@@ -22,7 +22,10 @@ TransmissionModel::TransmissionModel(const EffectRegistry& registry,
       params_.push_back(spec.default_value);
     }
   }
-  for (const auto& e : effects_) uses_signals_ = uses_signals_ || e->UsesSignals();
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    if (effects_[e]->UsesSignals()) signal_effects_.push_back(e);
+  }
+  uses_signals_ = !signal_effects_.empty();
   context_ = EffectContext::From(config_);
   Refresh();
 }
@@ -139,9 +142,8 @@ double TransmissionModel::FrictionMagnitudeN(double speed_mm_s, const SampleSign
 double TransmissionModel::SignalFrictionScale(const SampleSignals& s) const {
   double scale = 1.0;
   if (!uses_signals_) return scale;
-  for (std::size_t e = 0; e < effects_.size(); ++e) {
-    if (effects_[e]->UsesSignals())
-      scale *= effects_[e]->SignalFrictionScale(s, context_, params_.data() + offsets_[e]);
+  for (const std::size_t e : signal_effects_) {
+    scale *= effects_[e]->SignalFrictionScale(s, context_, params_.data() + offsets_[e]);
   }
   return scale;
 }
@@ -149,9 +151,8 @@ double TransmissionModel::SignalFrictionScale(const SampleSignals& s) const {
 double TransmissionModel::BreakawayN(const SampleSignals& s) const {
   if (!uses_signals_) return friction_level_n_;
   double sum = 0.0;
-  for (std::size_t e = 0; e < effects_.size(); ++e) {
-    if (effects_[e]->UsesSignals())
-      sum += effects_[e]->SignalFrictionN(0.0, s, context_, params_.data() + offsets_[e]);
+  for (const std::size_t e : signal_effects_) {
+    sum += effects_[e]->SignalFrictionN(0.0, s, context_, params_.data() + offsets_[e]);
   }
   return (friction_level_n_ + sum * friction_scale_) * SignalFrictionScale(s);
 }
@@ -159,9 +160,8 @@ double TransmissionModel::BreakawayN(const SampleSignals& s) const {
 double TransmissionModel::ForceN(const SampleSignals& s) const {
   double sum = 0.0;
   if (!uses_signals_) return sum;
-  for (std::size_t e = 0; e < effects_.size(); ++e) {
-    if (effects_[e]->UsesSignals())
-      sum += effects_[e]->ForceN(s, context_, params_.data() + offsets_[e]);
+  for (const std::size_t e : signal_effects_) {
+    sum += effects_[e]->ForceN(s, context_, params_.data() + offsets_[e]);
   }
   return sum;
 }
@@ -169,9 +169,8 @@ double TransmissionModel::ForceN(const SampleSignals& s) const {
 double TransmissionModel::SensorOffsetMm(double tip_mm, const SampleSignals& s) const {
   double sum = 0.0;
   if (!uses_signals_) return sum;
-  for (std::size_t e = 0; e < effects_.size(); ++e) {
-    if (effects_[e]->UsesSignals())
-      sum += effects_[e]->SensorOffsetMm(tip_mm, s, context_, params_.data() + offsets_[e]);
+  for (const std::size_t e : signal_effects_) {
+    sum += effects_[e]->SensorOffsetMm(tip_mm, s, context_, params_.data() + offsets_[e]);
   }
   return sum;
 }
@@ -197,9 +196,8 @@ void TransmissionModel::BreakawaysN(const TrialSignals& s, std::span<double> out
   if (uses_signals_) {
     // Signal friction at rest: the speeds are all zero.
     const std::vector<double> rest(out.size(), 0.0);
-    for (std::size_t e = 0; e < effects_.size(); ++e) {
-      if (effects_[e]->UsesSignals())
-        effects_[e]->AddSignalFrictionsN(rest, s, context_, params_.data() + offsets_[e], out);
+    for (const std::size_t e : signal_effects_) {
+      effects_[e]->AddSignalFrictionsN(rest, s, context_, params_.data() + offsets_[e], out);
     }
   }
   for (std::size_t i = 0; i < out.size(); ++i) {
@@ -211,9 +209,8 @@ void TransmissionModel::BreakawaysN(const TrialSignals& s, std::span<double> out
 void TransmissionModel::AddForcesN(const TrialSignals& s, std::span<double> force_n) const {
   assert(s.size() == force_n.size() && s.Consistent());
   if (!uses_signals_) return;
-  for (std::size_t e = 0; e < effects_.size(); ++e) {
-    if (effects_[e]->UsesSignals())
-      effects_[e]->AddForcesN(s, context_, params_.data() + offsets_[e], force_n);
+  for (const std::size_t e : signal_effects_) {
+    effects_[e]->AddForcesN(s, context_, params_.data() + offsets_[e], force_n);
   }
 }
 

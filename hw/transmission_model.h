@@ -128,6 +128,7 @@ class TransmissionModel {
   double delay_s_ = 0.0;
   double scale_ = 1.0;
   bool uses_signals_ = false;
+  std::vector<std::size_t> signal_effects_;  // indices of the effects that use signals
 };
 
 }  // namespace echoservo::hw

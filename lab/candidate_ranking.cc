@@ -1,8 +1,10 @@
 #include "lab/candidate_ranking.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cassert>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <future>
 
@@ -52,15 +54,22 @@ void ForEachInParallel(std::size_t count, int threads,
   for (auto& w : workers) w.get();
 }
 
-std::vector<double> CrossValidateFolds(std::size_t units, int folds, const FoldFunction& fold) {
+std::vector<double> CrossValidateFolds(std::size_t units, int folds, const FoldFunction& fold,
+                                       const std::vector<int>* assignment) {
   assert(units >= 2 && folds >= 2);
+  assert(assignment == nullptr || assignment->size() == units);
   const auto k = std::min<std::size_t>(static_cast<std::size_t>(folds), units);
   std::vector<double> sum;
   double weight = 0.0;
   for (std::size_t f = 0; f < k; ++f) {
     std::vector<std::size_t> train;
     std::vector<std::size_t> test;
-    for (std::size_t i = 0; i < units; ++i) (i % k == f ? test : train).push_back(i);
+    for (std::size_t i = 0; i < units; ++i) {
+      const std::size_t unit_fold =
+          assignment != nullptr ? static_cast<std::size_t>((*assignment)[i]) : i % k;
+      (unit_fold == f ? test : train).push_back(i);
+    }
+    if (test.empty() || train.empty()) continue;
     const FoldScore s = fold(train, test);
     if (sum.empty()) sum.assign(s.mse.size(), 0.0);
     for (std::size_t c = 0; c < s.mse.size(); ++c) sum[c] += s.mse[c] * s.weight;
@@ -68,6 +77,24 @@ std::vector<double> CrossValidateFolds(std::size_t units, int folds, const FoldF
   }
   for (double& v : sum) v /= weight;
   return sum;
+}
+
+std::vector<int> ShuffledFolds(std::size_t units, int folds) {
+  // Order the units by a fixed hash of their index (splitmix64), deal the order mod k.
+  auto hash = [](std::uint64_t x) {
+    x += 0x9e3779b97f4a7c15ull;
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+    return x ^ (x >> 31);
+  };
+  std::vector<std::size_t> order(units);
+  for (std::size_t i = 0; i < units; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return hash(a) < hash(b); });
+  const auto k = static_cast<std::size_t>(std::max(folds, 1));
+  std::vector<int> fold(units, 0);
+  for (std::size_t r = 0; r < units; ++r) fold[order[r]] = static_cast<int>(r % k);
+  return fold;
 }
 
 std::string PercentText(double fraction) {

@@ -54,8 +54,15 @@ struct FoldScore {
 };
 using FoldFunction = std::function<FoldScore(const std::vector<std::size_t>& train,
                                              const std::vector<std::size_t>& test)>;
-// Weighted mean of the folds' scores; requires units ≥ 2 and folds ≥ 2.
-std::vector<double> CrossValidateFolds(std::size_t units, int folds, const FoldFunction& fold);
+// Weighted mean of the folds' scores; requires units ≥ 2 and folds ≥ 2. Units are dealt
+// into folds by index modulo k, or by `assignment` (a fold in 0..k−1 per unit) when given.
+std::vector<double> CrossValidateFolds(std::size_t units, int folds, const FoldFunction& fold,
+                                       const std::vector<int>* assignment = nullptr);
+
+// Folds of `units` units dealt in a fixed pseudo-random order (the same every run), so that
+// a pattern in the units' order (trials alternating between two trajectories) cannot
+// line up with the folds: fold sizes differ by at most one.
+std::vector<int> ShuffledFolds(std::size_t units, int folds);
 
 // "42%" (never "-0%").
 std::string PercentText(double fraction);

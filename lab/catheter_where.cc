@@ -5,6 +5,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "lab/candidate_ranking.h"
+
 namespace echoservo::lab {
 namespace {
 
@@ -34,8 +36,8 @@ ResidualTable BuildResidualTable(const LabDataset& ds, const std::vector<Predict
   t.variables.resize(t.names.size());
   const std::size_t n = ds.residual_samples();
   for (auto& v : t.variables) v.reserve(n);
-  const int k = std::max(2, folds);
   const bool by_trial = ds.trials.size() >= 2;
+  const std::vector<int> trial_fold = ShuffledFolds(ds.trials.size(), std::max(2, folds));
   for (std::size_t j = 0; j < ds.trials.size(); ++j) {
     const LabTrial& lt = ds.trials[j];
     const hw::Trial& tr = lt.trial;
@@ -46,7 +48,7 @@ ResidualTable BuildResidualTable(const LabDataset& ds, const std::vector<Predict
       const double v = lt.velocity_mm_s[i];
       t.trial.push_back(j);
       t.index.push_back(i);
-      t.fold.push_back(by_trial ? static_cast<int>(j % static_cast<std::size_t>(k))
+      t.fold.push_back(by_trial ? trial_fold[j]
                                 : static_cast<int>(static_cast<long>(time_s / kBlockS) % 2));
       t.direction.push_back(std::abs(v) < kRestSpeedMmS ? 0 : (v > 0.0 ? 1 : -1));
       t.tip.push_back((p.tip_mm[i] - tr.tip_mm[i]) / ds.noise.tip_mm);

@@ -10,7 +10,7 @@
 // against the motion, so a friction misfit changes sign with the direction of motion and
 // averages out along any variable taken alone: every variable is therefore binned jointly
 // with the direction of motion (moving in −, at rest below 1 mm/s, moving in +). Folds
-// are the cross-validation's (trial index modulo k); a dataset of one trial uses 0.5 s
+// are the cross-validation's (ShuffledFolds over trials); a dataset of one trial uses 0.5 s
 // time blocks instead. Units: mm, s, N; residuals in noise σ, gains in noise variances.
 #pragma once
 

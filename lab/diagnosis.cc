@@ -124,6 +124,7 @@ CrossValidation CrossValidate(const std::vector<std::string>& effects, const Lab
     return cv;
   }
   if (keep_predictions) cv.held_out.resize(ds.trials.size());
+  const std::vector<int> assignment = ShuffledFolds(ds.trials.size(), folds);
   const std::vector<double> mse = CrossValidateFolds(
       ds.trials.size(), folds,
       [&](const std::vector<std::size_t>& train, const std::vector<std::size_t>& test) {
@@ -136,7 +137,8 @@ CrossValidation CrossValidate(const std::vector<std::string>& effects, const Lab
             cv.held_out[test[k]] = std::move(held.trials[k].prediction);
         }
         return FoldScore{{held.tip_mse_norm, held.force_mse_norm}, m};
-      });
+      },
+      &assignment);
   cv.tip_mse = mse[0];
   cv.force_mse = mse[1];
   return cv;
@@ -195,8 +197,11 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
     std::string replaces;
   };
   std::vector<Change> changes;
-  std::vector<std::string> names = o.candidates;
-  if (names.empty()) {
+  std::vector<std::string> names;
+  for (const std::string& e : o.candidates) {  // the user's list, less what the model has
+    if (std::find(model.begin(), model.end(), e) == model.end()) names.push_back(e);
+  }
+  if (o.candidates.empty()) {
     for (const std::string& e : catalog.Names()) {
       if (std::find(model.begin(), model.end(), e) == model.end()) names.push_back(e);
     }

@@ -45,7 +45,7 @@ struct DiagnoseOptions {
   bool discover = true;
   int max_terms = 2;                  // terms of a proposal
   int variables_per_channel = 3;      // top `where` variables screened per channel
-  int refit = 3;                      // screened terms fitted through the full model
+  int refit = 3;                      // screened terms fitted through the full model, at most
   std::filesystem::path propose_dir;  // where the proposal's effect file goes ("": not written)
 };
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <numeric>
 
@@ -12,6 +13,9 @@ namespace echoservo::lab {
 namespace {
 
 enum class Shape { kLinear, kQuadratic, kCubic, kBump };
+
+// Trials the choice between screened terms is made on (spread over a larger dataset).
+constexpr std::size_t kSelectionTrials = 16;
 
 struct HookInfo {
   const char* hook;
@@ -294,11 +298,11 @@ void AddTerm(hw::EffectFileSpec& spec, const Term& t, int k) {
     case Shape::kLinear:
       expr = c + "*" + x;
       break;
-    case Shape::kQuadratic:
-      expr = c + "*" + x + "^2";
+    case Shape::kQuadratic:  // products, not ^: muParser evaluates ^ with pow()
+      expr = c + "*" + x + "*" + x;
       break;
     case Shape::kCubic:
-      expr = c + "*" + x + "^3";
+      expr = c + "*" + x + "*" + x + "*" + x;
       break;
     case Shape::kBump: {
       const std::string x0 = "x0" + suffix;
@@ -309,7 +313,8 @@ void AddTerm(hw::EffectFileSpec& spec, const Term& t, int k) {
                                  "centre of the bump along " + x});
       spec.parameters.push_back(
           {w, unit, t.width, range / 50.0, 2.0 * range, "width of the bump along " + x});
-      expr = c + "*exp(-((" + x + "-" + x0 + ")/" + w + ")^2)";
+      const std::string u = "((" + x + "-" + x0 + ")/" + w + ")";
+      expr = c + "*exp(-" + u + "*" + u + ")";
       break;
     }
   }
@@ -403,7 +408,8 @@ struct Trial {
 // cross-validates it against `reference` (held-out scores of what it extends).
 Trial FitTerms(const std::vector<std::string>& model, const std::vector<Term>& terms,
                const LabDataset& ds, const FitResult& start_from,
-               const std::vector<double>& reference, const DiagnoseOptions& o, bool keep) {
+               const std::vector<double>& reference, const DiagnoseOptions& o, bool keep,
+               int threads) {
   Trial t;
   t.terms = terms;
   t.spec = MakeSpec(terms);
@@ -411,7 +417,7 @@ Trial FitTerms(const std::vector<std::string>& model, const std::vector<Term>& t
   hw::RegisterEffectSpec(registry, t.spec);
   FitOptions fo = o.fit;
   fo.registry = &registry;
-  fo.threads = 1;
+  fo.threads = std::max(1, threads);
   fo.progress = nullptr;
   t.effects = model;
   t.effects.push_back(t.spec.name);
@@ -501,22 +507,41 @@ std::optional<Proposal> DiscoverEffect(const std::vector<std::string>& model, co
   double tip_excess = d.tip_excess;
   double force_excess = d.force_excess;
   FitResult start_from = d.base;
+  const bool subset = ds.trials.size() > kSelectionTrials;
+  LabDataset spread;
+  if (subset) {
+    spread.noise = ds.noise;
+    for (std::size_t k = 0; k < kSelectionTrials; ++k)
+      spread.trials.push_back(ds.trials[k * ds.trials.size() / kSelectionTrials]);
+  }
+  const LabDataset& selection = subset ? spread : ds;
   for (int round = 0; round < o.max_terms; ++round) {
     const std::vector<Term> screened =
         ScreenLibrary(table, where, tip_excess, force_excess, ds, o, chosen);
     if (screened.empty()) break;
+    // The screened terms are fitted through the whole model in parallel and the one with
+    // the lowest held-out residual is chosen; on a large dataset the choice is made on a
+    // subset of trials spread over it (kSelectionTrials), then the chosen term alone is
+    // refitted and cross-validated on every trial. It is kept if it is significant there.
     std::vector<Trial> trials(screened.size());
     ForEachInParallel(screened.size(), o.threads, [&](std::size_t i) {
       if (o.fit.progress) o.fit.progress("discovery: fitting " + screened[i].Id());
       std::vector<Term> terms = chosen;
       terms.push_back(screened[i]);
-      trials[i] = FitTerms(model, terms, ds, start_from, reference, o, true);
+      trials[i] = FitTerms(model, terms, selection, start_from, reference, o, !subset, 1);
     });
-    const Trial* pick = nullptr;
-    for (const Trial& t : trials) {
-      if (t.judgement.significant && (pick == nullptr || t.judgement.score > pick->judgement.score))
-        pick = &t;
+    std::size_t choice = 0;
+    for (std::size_t i = 1; i < trials.size(); ++i) {
+      if (trials[i].cv.tip_mse + trials[i].cv.force_mse <
+          trials[choice].cv.tip_mse + trials[choice].cv.force_mse)
+        choice = i;
     }
+    if (subset) {
+      if (o.fit.progress) o.fit.progress("discovery: refitting " + screened[choice].Id());
+      trials[choice] =
+          FitTerms(model, trials[choice].terms, ds, start_from, reference, o, true, o.threads);
+    }
+    const Trial* pick = trials[choice].judgement.significant ? &trials[choice] : nullptr;
     if (pick == nullptr) break;
     best = *pick;
     chosen = pick->terms;

@@ -11,10 +11,11 @@
 // Procedure, a sparse forward selection: (1) screening — for the variables that explain
 // most of each channel's excess, every term's effect on the residual is linearised
 // (coefficient × the term's signature in noise σ) and its coefficient fitted on the
-// training folds; the held-out gain ranks the terms; (2) the best `refit` terms are fitted
-// through the whole transmission model (the model plus the term as one effect, every
-// parameter refitted) and cross-validated over trials; the best is kept if it is
-// significant (lab/candidate_ranking.h); (3) while a channel keeps a significant excess,
+// training folds; the held-out gain ranks the terms; (2) in that order, up to `refit`
+// terms are fitted through the whole transmission model (the model plus the term as one
+// effect, every parameter refitted) and cross-validated over trials, stopping at the first
+// significant term that removes ≥ 80 % of its channel's excess; the best significant one
+// (lab/candidate_ranking.h) is kept; (3) while a channel keeps a significant excess,
 // the next term is added the same way (at most `max_terms`). The result: an effect file
 // with the fitted values as defaults and bounds of ±10× around them, its equation in words
 // and units, the SPEC that uses it, and its held-out RMS per channel.

@@ -48,15 +48,27 @@ void PredictTrial(const hw::TransmissionModel& model, const LabTrial& lt,
     for (std::size_t i = 0; i < n; ++i) time_s[i] = tr.t_s[i] - tr.t_s[0];
     sig = {time_s, tr.base_mm, lt.velocity_mm_s, lt.acceleration_mm_s2};
     model.FrictionMagnitudesN(tip, sig, out.force_n);
-    std::vector<double> breakaway(n);
-    model.BreakawaysN(sig, breakaway);
     extra_n.assign(n, 0.0);
     model.AddForcesN(sig, extra_n);
-    for (std::size_t i = 0; i < n; ++i) {
-      const double kinetic = out.force_n[i];
-      const double band = std::max(breakaway[i], kinetic);
-      out.force_n[i] = lt.may_stick[i] != 0 ? std::clamp(tr.force_n[i] - extra_n[i], -band, band)
-                                            : std::copysign(kinetic, lt.velocity_mm_s[i]);
+    // The breakaway matters only where the guidewire may stick: evaluated there alone.
+    std::vector<std::size_t> stick;
+    for (std::size_t i = 0; i < n; ++i)
+      if (lt.may_stick[i] != 0) stick.push_back(i);
+    std::vector<double> st_t(stick.size()), st_x(stick.size()), st_v(stick.size()),
+        st_a(stick.size()), breakaway(stick.size());
+    for (std::size_t k = 0; k < stick.size(); ++k) {
+      st_t[k] = time_s[stick[k]];
+      st_x[k] = tr.base_mm[stick[k]];
+      st_v[k] = lt.velocity_mm_s[stick[k]];
+      st_a[k] = lt.acceleration_mm_s2[stick[k]];
+    }
+    model.BreakawaysN({st_t, st_x, st_v, st_a}, breakaway);
+    for (std::size_t i = 0; i < n; ++i)
+      if (lt.may_stick[i] == 0) out.force_n[i] = std::copysign(out.force_n[i], lt.velocity_mm_s[i]);
+    for (std::size_t k = 0; k < stick.size(); ++k) {
+      const std::size_t i = stick[k];
+      const double band = std::max(breakaway[k], out.force_n[i]);
+      out.force_n[i] = std::clamp(tr.force_n[i] - extra_n[i], -band, band);
     }
     model.DrivesMm(tr.base_mm, out.force_n, tip);
     for (std::size_t i = 0; i < n; ++i) out.force_n[i] += extra_n[i];

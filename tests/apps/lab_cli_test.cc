@@ -136,7 +136,10 @@ TEST(LabCli, DiagnoseJsonRanksTheMissingEffectFirst) {
     }
   }
   EXPECT_TRUE(Contains(c[0]["evidence"].get<std::string>(), "tip RMS")) << c[0]["evidence"];
-  EXPECT_TRUE(Contains(j["verdict"].get<std::string>(), "sensor_delay"));
+  EXPECT_EQ(j["verdict"].get<std::string>(), "missing_effect");
+  EXPECT_FALSE(j["adequate"].get<bool>());
+  EXPECT_TRUE(Contains(j["summary"].get<std::string>(), "sensor_delay")) << j["summary"];
+  EXPECT_TRUE(j["proposal"].is_null());  // a catalog effect explains it: nothing to discover
 
   // The text form names the missing effect and the next command.
   const Result text = RunCli("lab diagnose " + dir.str());
