@@ -129,51 +129,18 @@ void SimulatedCatheter::Substep(double h, double current_cmd_a) {
   if (truth_.base_mm > half) applied_n -= a.end_stop_stiffness_n_per_mm * (truth_.base_mm - half);
   if (truth_.base_mm < -half) applied_n -= a.end_stop_stiffness_n_per_mm * (truth_.base_mm + half);
 
-  if (model_.UsesSignals()) {
-    SubstepWithSignals(h, applied_n);
-    return;
-  }
-  PlantTruth& s = truth_;
-  const double accel_per_n = kMmPerM / a.moving_mass_kg;  // mm/s² per N
-  const double v_before = s.base_velocity_mm_s;
-  if (s.stuck) {
-    const double breakaway = model_.FrictionLevelN();
-    if (std::abs(applied_n) <= breakaway) {
-      s.friction_force_n = applied_n;  // static friction balances the drive
-      s.base_velocity_mm_s = 0.0;
-    } else {
-      s.stuck = false;
-      s.friction_force_n = std::copysign(breakaway, applied_n);
-      s.base_velocity_mm_s += h * (applied_n - s.friction_force_n) * accel_per_n;
-    }
-  } else {
-    const double v = s.base_velocity_mm_s;
-    s.friction_force_n = std::copysign(model_.FrictionMagnitudeN(std::abs(v)), v);
-    const double v_next = v + h * (applied_n - s.friction_force_n) * accel_per_n;
-    if (v != 0.0 && v_next * v <= 0.0) {  // sliding stopped within the step
-      s.base_velocity_mm_s = 0.0;
-      s.stuck = true;
-    } else {
-      s.base_velocity_mm_s = v_next;
-    }
-  }
-  s.acceleration_mm_s2 = (s.base_velocity_mm_s - v_before) / h;
-  s.time_s += h;
-  s.base_mm += h * s.base_velocity_mm_s;
-  s.drive_mm = model_.DriveMm(s.base_mm, s.friction_force_n);
-  const double tip_before = s.tip_mm;
-  s.tip_mm = model_.StepTip(s.tip_mm, s.drive_mm, h);
-  RecordTip(tip_before, s.tip_mm, h);
+  SubstepMechanics(h, applied_n);
 }
 
 SampleSignals SimulatedCatheter::Signals() const {
   return {truth_.time_s, truth_.base_mm, truth_.base_velocity_mm_s, truth_.acceleration_mm_s2};
 }
 
-// Substep's mechanics with the effects' signal hooks: the extra force opposes the drive
-// like a load (it is not friction, so it does not stick), breakaway and kinetic friction
-// include the signal friction at this sample.
-void SimulatedCatheter::SubstepWithSignals(double h, double applied_n) {
+// The slide's mechanics over one substep, with the effects' signal hooks: the extra force
+// opposes the drive like a load (it is not friction, so it does not stick), breakaway and
+// kinetic friction include the signal friction at this sample. Without signal effects the
+// extra force is 0 and the friction the model's plain values, bit for bit.
+void SimulatedCatheter::SubstepMechanics(double h, double applied_n) {
   PlantTruth& s = truth_;
   const double accel_per_n = kMmPerM / options_.actuator.moving_mass_kg;  // mm/s² per N
   const SampleSignals signals = Signals();
@@ -183,7 +150,7 @@ void SimulatedCatheter::SubstepWithSignals(double h, double applied_n) {
   if (s.stuck) {
     const double breakaway = model_.BreakawayN(signals);
     if (std::abs(net_n) <= breakaway) {
-      s.friction_force_n = net_n;
+      s.friction_force_n = net_n;  // static friction balances the drive
       s.base_velocity_mm_s = 0.0;
     } else {
       s.stuck = false;
@@ -193,7 +160,7 @@ void SimulatedCatheter::SubstepWithSignals(double h, double applied_n) {
   } else {
     s.friction_force_n = std::copysign(model_.FrictionMagnitudeN(std::abs(v), signals), v);
     const double v_next = v + h * (net_n - s.friction_force_n) * accel_per_n;
-    if (v != 0.0 && v_next * v <= 0.0) {
+    if (v != 0.0 && v_next * v <= 0.0) {  // sliding stopped within the step
       s.base_velocity_mm_s = 0.0;
       s.stuck = true;
     } else {

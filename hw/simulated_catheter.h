@@ -94,7 +94,7 @@ class SimulatedCatheter final : public HardwareInterface {
 
  private:
   void Substep(double h_s, double current_cmd_a);
-  void SubstepWithSignals(double h_s, double applied_n);
+  void SubstepMechanics(double h_s, double applied_n);
   SampleSignals Signals() const;
   double Quantise(double v, double q) const;
   // The tip history is sampled every history_period_s_ of simulated time whatever the

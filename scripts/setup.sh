@@ -16,6 +16,7 @@ packages=(
   libtbb-dev
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
   libssl-dev
+  python3
   zlib1g-dev
   xvfb
   xauth

@@ -14,6 +14,7 @@
 #include <stdexcept>
 
 #include "apps/commands/effect_catalog_flags.h"
+#include "apps/commands/lab_json.h"
 #include "apps/commands/lab_motion.h"
 #include "apps/output.h"
 #include "hw/effect_registry.h"
@@ -158,17 +159,6 @@ nlohmann::json GroupsJson(const std::vector<lab::GroupStat>& groups) {
                    {"sample_share", g.sample_share},
                    {"tip_share", g.tip_share},
                    {"force_share", g.force_share}});
-  }
-  return out;
-}
-
-nlohmann::json WhereJson(const std::vector<lab::WhereEntry>& where) {
-  nlohmann::json out = nlohmann::json::array();
-  for (const auto& e : where) {
-    out.push_back({{"channel", e.channel},
-                   {"variable", e.variable},
-                   {"explained_fraction", e.explained_fraction},
-                   {"gain_noise_var", e.gain}});
   }
   return out;
 }

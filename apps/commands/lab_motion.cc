@@ -4,6 +4,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "apps/commands/lab_json.h"
 #include "apps/output.h"
 #include "lab/motion_diagnosis.h"
 
@@ -33,17 +34,6 @@ nlohmann::json GroupsJson(const std::vector<lab::MotionGroup>& groups) {
                    {"rms_mm", g.rms_mm},
                    {"sample_share", g.sample_share},
                    {"error_share", g.error_share}});
-  }
-  return out;
-}
-
-nlohmann::json MotionWhereJson(const std::vector<lab::WhereEntry>& where) {
-  nlohmann::json out = nlohmann::json::array();
-  for (const auto& e : where) {
-    out.push_back({{"channel", e.channel},
-                   {"variable", e.variable},
-                   {"explained_fraction", e.explained_fraction},
-                   {"gain_noise_var", e.gain}});
   }
   return out;
 }
@@ -97,7 +87,7 @@ void RunMotionCompare(const MotionLabFlags& f) {
                                 {"cv_mse_noise", held.mse},
                                 {"held_out_rms_mm", std::sqrt(held.mse) * noise},
                                 {"excess", {{"position", held.mse - 1.0}}},
-                                {"where", MotionWhereJson(where)},
+                                {"where", WhereJson(where)},
                                 {"params", ParamsJson(fit)},
                                 {"breakdown",
                                  {{"cardiac_phase", GroupsJson(b.cardiac_phase)},
@@ -152,7 +142,7 @@ void RunMotionDiagnose(const MotionLabFlags& f, const std::string& propose_dir) 
                      {"adequate", d.adequate},
                      {"verdict", d.verdict},
                      {"summary", d.summary},
-                     {"where", MotionWhereJson(d.where)},
+                     {"where", WhereJson(d.where)},
                      {"candidates", candidates}};
     if (d.proposal) {
       j["proposal"] = {{"spec", d.proposal->spec},
