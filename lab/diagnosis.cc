@@ -190,13 +190,13 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
   const ResidualTable residuals = BuildResidualTable(ds, d.base_cv.held_out, o.folds);
   d.where = LocateResidual(residuals, d.tip_excess, d.force_excess);
 
-  // Candidates: every catalog effect not in the model is added; with `swappable`, each of
-  // those effects may also be replaced by one.
+  // Candidates: every catalog effect not in the model is added; then, with `swappable`,
+  // the `swap_candidates` best additions are also tried in place of each swappable effect
+  // (a replacement worth making is an effect that helps as an addition too).
   struct Change {
     std::string effect;
     std::string replaces;
   };
-  std::vector<Change> changes;
   std::vector<std::string> names;
   for (const std::string& e : o.candidates) {  // the user's list, less what the model has
     if (std::find(model.begin(), model.end(), e) == model.end()) names.push_back(e);
@@ -206,11 +206,8 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
       if (std::find(model.begin(), model.end(), e) == model.end()) names.push_back(e);
     }
   }
-  for (const std::string& e : names) changes.push_back({e, ""});
-  for (const std::string& r : o.swappable) {
-    if (std::find(model.begin(), model.end(), r) == model.end()) continue;
-    for (const std::string& e : names) changes.push_back({e, r});
-  }
+  const std::vector<double> base_scores = {d.base_cv.tip_mse, d.base_cv.force_mse};
+  const SignificanceRule rule{o.min_excess, o.min_explained};
   auto evaluate = [&](const Change& change) {
     Candidate c;
     c.effect = change.effect;
@@ -225,30 +222,45 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
     fo.progress = nullptr;
     c.fit = FitModel(effects, ds, fo, {}, &start);
     c.cv = CrossValidate(effects, ds, fo, o.folds, &c.fit.parameters);
-    return c;
-  };
-  // Fit the candidates on `threads` workers pulling from a shared queue.
-  d.candidates.resize(changes.size());
-  std::mutex progress_mutex;
-  ForEachInParallel(changes.size(), o.threads, [&](std::size_t i) {
-    if (o.fit.progress) {
-      const std::lock_guard<std::mutex> lock(progress_mutex);
-      o.fit.progress("diagnose: fitting " + hw::FormatModelSpec(model) +
-                     (changes[i].replaces.empty() ? "" : "-" + changes[i].replaces) + "+" +
-                     changes[i].effect);
-    }
-    d.candidates[i] = evaluate(changes[i]);
-  });
-
-  const SignificanceRule rule{o.min_excess, o.min_explained};
-  for (Candidate& c : d.candidates) {
-    const Judgement j = JudgeCandidate({d.base_cv.tip_mse, d.base_cv.force_mse},
-                                       {c.cv.tip_mse, c.cv.force_mse}, rule);
+    const Judgement j = JudgeCandidate(base_scores, {c.cv.tip_mse, c.cv.force_mse}, rule);
     c.tip_explained = j.explained[0];
     c.force_explained = j.explained[1];
     c.score = j.score;
     c.significant = j.significant;
     c.channel = j.channel == 0 ? "tip" : "force";
+    return c;
+  };
+  // Fit the changes on `threads` workers pulling from a shared queue.
+  std::mutex progress_mutex;
+  auto evaluate_all = [&](const std::vector<Change>& changes) {
+    std::vector<Candidate> out(changes.size());
+    ForEachInParallel(changes.size(), o.threads, [&](std::size_t i) {
+      if (o.fit.progress) {
+        const std::lock_guard<std::mutex> lock(progress_mutex);
+        o.fit.progress("diagnose: fitting " + hw::FormatModelSpec(model) +
+                       (changes[i].replaces.empty() ? "" : "-" + changes[i].replaces) + "+" +
+                       changes[i].effect);
+      }
+      out[i] = evaluate(changes[i]);
+    });
+    return out;
+  };
+  std::vector<Change> additions;
+  for (const std::string& e : names) additions.push_back({e, ""});
+  d.candidates = evaluate_all(additions);
+  std::vector<std::string> swappable;
+  for (const std::string& r : o.swappable) {
+    if (std::find(model.begin(), model.end(), r) != model.end()) swappable.push_back(r);
+  }
+  if (!swappable.empty()) {
+    std::vector<Candidate> best = d.candidates;
+    RankCandidates(best);
+    std::vector<Change> swaps;
+    for (std::size_t k = 0; k < best.size() && k < static_cast<std::size_t>(o.swap_candidates);
+         ++k) {
+      for (const std::string& r : swappable) swaps.push_back({best[k].effect, r});
+    }
+    for (Candidate& c : evaluate_all(swaps)) d.candidates.push_back(std::move(c));
   }
   RankCandidates(d.candidates);
 

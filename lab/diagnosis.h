@@ -37,8 +37,10 @@ struct DiagnoseOptions {
   double min_explained = 0.3;           // fraction of that excess a candidate must remove
   int threads = 2;                      // candidates fitted in parallel
   std::vector<std::string> candidates;  // empty: every catalog effect not in the model
-  // Effects of the model that may be replaced by a candidate (the ladder's own additions).
+  // Effects of the model that may be replaced by a candidate (the ladder's own additions),
+  // each by the `swap_candidates` best additions.
   std::vector<std::string> swappable;
+  int swap_candidates = 2;
   // Held-out noise variances a variable of `where` must explain to count as structure.
   double min_structure = 0.25;
   // Propose an effect when the verdict is "unexplained" (lab/effect_discovery.h).
