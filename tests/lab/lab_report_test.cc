@@ -176,9 +176,13 @@ TEST_F(LabReport, HasHeaderLadderDiagnosisParametersAndPlots) {
   ASSERT_FALSE(ladder.empty());
   EXPECT_EQ(ladder.front(), "seed");
   EXPECT_LE(ladder.size(), 3u);  // --max-rounds 2
-  for (const char* id : {"ladder", "diagnosis", "parameters", "trials", "breakdown"}) {
+  for (const char* id : {"ladder", "diagnosis", "where", "parameters", "trials", "breakdown"}) {
     EXPECT_NE(html.find(std::string("<section id=\"") + id + "\">"), std::string::npos) << id;
   }
+  // Where the seed fails: the hidden capstan friction leaves a force excess, so the table
+  // ranks force variables and the residual is plotted against the top ones.
+  EXPECT_NE(html.find("gain (noise var)"), std::string::npos);
+  EXPECT_NE(html.find("force residual along "), std::string::npos);
   // Header: trial count, noise, the model.
   EXPECT_NE(html.find("<dt>Trials</dt><dd>8"), std::string::npos);
   EXPECT_NE(html.find("Estimated noise"), std::string::npos);
