@@ -1,8 +1,12 @@
 #include "apps/cli.h"
 
 #include <CLI/CLI.hpp>
+#include <cstdlib>
 #include <exception>
 #include <iostream>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include "apps/commands/bench_commands.h"
 #include "apps/commands/imaging_commands.h"
@@ -12,8 +16,25 @@
 #include "apps/commands/report_command.h"
 
 namespace echoservo::apps {
+namespace {
 
-int RunCli(int argc, char** argv) {
+// ECHOSERVO_PARSE_ONLY=1: parse and validate the arguments as usual (CLI11's checks
+// included) but run no command: once the whole command line has been parsed and checked,
+// before any command's callback, print the selected command's path and stop.
+// ECHOSERVO_PARSE_ONLY=batch does that for one command line per line of stdin (arguments
+// separated by tabs, without the program name), printing "--- rc N" on stdout and stderr
+// after each, in one process. tests/apps/docs_commands_test.py checks the documentation's
+// command lines this way (docs/reliability.md).
+struct ParsedOnly {};
+
+std::string SelectedPath(const CLI::App& app) {
+  std::string path = "echoservo";
+  for (const CLI::App* a = &app; !a->get_subcommands().empty(); a = a->get_subcommands().front())
+    path += " " + a->get_subcommands().front()->get_name();
+  return path;
+}
+
+int RunOnce(int argc, const char* const* argv, bool parse_only) {
   CLI::App app{
       "echoservo: ultrasound-guided motion-compensation catheter servo, simulator and model lab"};
   app.require_subcommand(1);
@@ -30,8 +51,13 @@ int RunCli(int argc, char** argv) {
   AddBenchCommands(app);
   AddLiveCommands(app);
   AddReportCommand(app);
+  // The root's parse-complete callback runs after all parsing and checks and before the
+  // subcommands' callbacks (CLI::App::run_callback).
+  if (parse_only) app.parse_complete_callback([] { throw ParsedOnly{}; });
   try {
     app.parse(argc, argv);
+  } catch (const ParsedOnly&) {
+    std::cout << "parse only: " << SelectedPath(app) << "\n";
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   } catch (const std::exception& e) {
@@ -39,6 +65,34 @@ int RunCli(int argc, char** argv) {
     return 1;
   }
   return 0;
+}
+
+int ParseBatch() {
+  std::string line;
+  while (std::getline(std::cin, line)) {
+    std::vector<std::string> args{"echoservo"};
+    if (!line.empty()) {
+      std::size_t begin = 0;
+      for (std::size_t tab; (tab = line.find('\t', begin)) != std::string::npos; begin = tab + 1)
+        args.push_back(line.substr(begin, tab - begin));
+      args.push_back(line.substr(begin));
+    }
+    std::vector<const char*> argv;
+    for (const std::string& a : args) argv.push_back(a.c_str());
+    const int rc = RunOnce(static_cast<int>(argv.size()), argv.data(), true);
+    std::cout << "--- rc " << rc << std::endl;
+    std::cerr << "--- rc " << rc << std::endl;
+  }
+  return 0;
+}
+
+}  // namespace
+
+int RunCli(int argc, char** argv) {
+  const char* parse_only = std::getenv("ECHOSERVO_PARSE_ONLY");
+  const std::string_view mode = parse_only != nullptr ? parse_only : "";
+  if (mode == "batch") return ParseBatch();
+  return RunOnce(argc, argv, mode == "1");
 }
 
 }  // namespace echoservo::apps

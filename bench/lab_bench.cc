@@ -45,25 +45,27 @@ using echoservo::lab::FitOptions;
 using echoservo::lab::FitResult;
 using echoservo::lab::LabDataset;
 
-const LabDataset& Dataset() {
-  static const std::unique_ptr<LabDataset> dataset = [] {
-    const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                      ("echoservo_lab_bench_" + std::to_string(::getpid()));
-    std::filesystem::remove_all(dir);
-    echoservo::control::RecordOptions o;
-    o.out_dir = dir;
-    o.effects = echoservo::hw::ParseModelSpec("seed+capstan_friction+sensor_delay",
-                                              echoservo::hw::EffectRegistry::WithBuiltinEffects());
-    o.configs = "lab";
-    o.tip_loads_n = {0.0, 0.5, 1.0, 1.5};
-    o.trajectories = {"sine:4:0.8", "mitral"};
-    o.duration_s = 7.0;
-    echoservo::control::RecordDataset(o);
-    auto ds = std::make_unique<LabDataset>(echoservo::lab::LoadLabDataset(dir));
-    std::filesystem::remove_all(dir);
-    return ds;
-  }();
-  return *dataset;
+// Records the benchmark's dataset (4 tip loads x 2 trajectories x the lab configurations,
+// 7 s each) of the plant `spec` under `registry`, and loads it back.
+std::unique_ptr<LabDataset> RecordedDataset(const std::string& tag, const std::string& spec,
+                                            echoservo::hw::EffectRegistry& registry) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() /
+      ("echoservo_lab_bench_" + tag + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  echoservo::hw::SetDefaultEffectRegistry(&registry);
+  echoservo::control::RecordOptions o;
+  o.out_dir = dir;
+  o.effects = echoservo::hw::ParseModelSpec(spec, registry);
+  o.configs = "lab";
+  o.tip_loads_n = {0.0, 0.5, 1.0, 1.5};
+  o.trajectories = {"sine:4:0.8", "mitral"};
+  o.duration_s = 7.0;
+  echoservo::control::RecordDataset(o);
+  echoservo::hw::SetDefaultEffectRegistry(nullptr);
+  auto ds = std::make_unique<LabDataset>(echoservo::lab::LoadLabDataset(dir));
+  std::filesystem::remove_all(dir);
+  return ds;
 }
 
 // The catalog plus the out-of-catalog tight spot, as an effect file would give it.
@@ -82,25 +84,17 @@ echoservo::hw::EffectRegistry& TightSpotCatalog() {
   return registry;
 }
 
+const LabDataset& Dataset() {
+  static echoservo::hw::EffectRegistry builtin =
+      echoservo::hw::EffectRegistry::WithBuiltinEffects();
+  static const std::unique_ptr<LabDataset> dataset =
+      RecordedDataset("seed", "seed+capstan_friction+sensor_delay", builtin);
+  return *dataset;
+}
+
 const LabDataset& OutOfCatalogDataset() {
-  static const std::unique_ptr<LabDataset> dataset = [] {
-    const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                      ("echoservo_lab_bench_open_" + std::to_string(::getpid()));
-    std::filesystem::remove_all(dir);
-    echoservo::hw::SetDefaultEffectRegistry(&TightSpotCatalog());
-    echoservo::control::RecordOptions o;
-    o.out_dir = dir;
-    o.effects = echoservo::hw::ParseModelSpec("seed+tight_spot", TightSpotCatalog());
-    o.configs = "lab";
-    o.tip_loads_n = {0.0, 0.5, 1.0, 1.5};
-    o.trajectories = {"sine:4:0.8", "mitral"};
-    o.duration_s = 7.0;
-    echoservo::control::RecordDataset(o);
-    echoservo::hw::SetDefaultEffectRegistry(nullptr);
-    auto ds = std::make_unique<LabDataset>(echoservo::lab::LoadLabDataset(dir));
-    std::filesystem::remove_all(dir);
-    return ds;
-  }();
+  static const std::unique_ptr<LabDataset> dataset =
+      RecordedDataset("open", "seed+tight_spot", TightSpotCatalog());
   return *dataset;
 }
 

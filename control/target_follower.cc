@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace echoservo::control {
@@ -39,6 +40,20 @@ void FollowerConfig::Validate() const {
   if (!(scale_gain > 0 && scale_gain <= 1)) bad("scale_gain", "must be in (0, 1]");
   if (!(scale_prior_sd > 0 && scale_prior_sd <= 1)) bad("scale_prior_sd", "must be in (0, 1]");
   if (!(tip_noise_mm > 0 && tip_noise_mm <= 10)) bad("tip_noise_mm", "must be in (0, 10] mm");
+  if (!(max_offset_change_mm > 0 && max_offset_change_mm <= 100))
+    bad("max_offset_change_mm", "must be in (0, 100] mm");
+  if (!(response_window_s > 0 && response_window_s <= 10))
+    bad("response_window_s", "must be in (0, 10] s");
+  if (!(response_delay_s >= 0 && response_delay_s <= 0.5))
+    bad("response_delay_s", "must be in [0, 0.5] s");
+  if (!(response_min_excitation_mm > 0 && response_min_excitation_mm <= 10))
+    bad("response_min_excitation_mm", "must be in (0, 10] mm");
+  if (!(response_max_gain_se > 0 && response_max_gain_se <= 1))
+    bad("response_max_gain_se", "must be in (0, 1]");
+  if (!(response_min_volumes >= 3 && response_min_volumes <= 10000))
+    bad("response_min_volumes", "must be in [3, 10000]");
+  if (!(response_min_gain >= 0 && response_min_gain < 1))
+    bad("response_min_gain", "must be in [0, 1)");
 }
 
 std::string ToString(FollowerMode mode) {
@@ -60,7 +75,13 @@ std::string ToString(FollowerMode mode) {
 TargetFollower::TargetFollower(FollowerConfig config) : config_(config) { config_.Validate(); }
 
 void TargetFollower::Enable(double now_s) {
-  faults_ &= ~(follower_fault::kStopRequested | follower_fault::kRetracted);
+  if (faults_ & follower_fault::kImageNotResponding) {
+    // The operator re-arms the check: judged afresh on volumes from now on.
+    response_window_.clear();
+    response_ = {};
+  }
+  faults_ &= ~(follower_fault::kStopRequested | follower_fault::kRetracted |
+               follower_fault::kImageNotResponding);
   if (has_estimate_ && now_s - last_estimate_s_ <= config_.stale_after_s) {
     mode_ = FollowerMode::kFollowing;
   } else {
@@ -123,7 +144,8 @@ bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
     return false;
   }
   const double x = TipAt(e.acquired_s);
-  if (config_.estimate_scale) {
+  const bool frozen = faults_ & follower_fault::kImageNotResponding;
+  if (config_.estimate_scale && !frozen) {
     // Exponentially weighted least squares of s_tip on x_tip, the slope pulled towards 1 by
     // its prior: slope = (cov + λ)/(var + λ), λ = σ_tip²/(n_eff·σ_k²), n_eff = (2 − g)/g the
     // weighted window's effective number of volumes.
@@ -146,23 +168,75 @@ bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
     scale_ = std::max(scale_, 0.1);
   }
   const double measured_offset = e.tip_axis_mm - scale_ * x;
-  offset_mm_ = offset_known_ ? offset_mm_ + config_.offset_gain * (measured_offset - offset_mm_)
-                             : measured_offset;
+  if (!offset_known_) {
+    offset_mm_ = offset_anchor_mm_ = measured_offset;
+  } else if (!frozen) {
+    // A registration does not wander: c stays within max_offset_change_mm of its first value.
+    const double c = offset_mm_ + config_.offset_gain * (measured_offset - offset_mm_);
+    offset_mm_ = std::clamp(c, offset_anchor_mm_ - config_.max_offset_change_mm,
+                            offset_anchor_mm_ + config_.max_offset_change_mm);
+    if (offset_mm_ != c) ++counters_.offset_bounded;
+  }
   offset_known_ = true;
   estimate_ = e;
   has_estimate_ = true;
   last_estimate_s_ = now_s;
   ++counters_.accepted;
   faults_ &= ~(follower_fault::kStaleEstimate | follower_fault::kRejectedEstimate);
-  if (mode_ == FollowerMode::kHolding && !(faults_ & follower_fault::kStopRequested))
+  if (mode_ == FollowerMode::kHolding &&
+      !(faults_ & (follower_fault::kStopRequested | follower_fault::kImageNotResponding)))
     mode_ = FollowerMode::kFollowing;
+  if (config_.check_response) CheckResponse(e.acquired_s, e.tip_axis_mm, now_s);
   return true;
+}
+
+void TargetFollower::CheckResponse(double acquired_s, double tip_axis_mm, double now_s) {
+  response_window_.push_back(
+      {acquired_s, TipAt(acquired_s - config_.response_delay_s), tip_axis_mm});
+  while (!response_window_.empty() &&
+         response_window_.front().acquired_s < acquired_s - config_.response_window_s)
+    response_window_.pop_front();
+  // Least squares of s on x over the window (two passes: the means, then the sums).
+  const auto n = static_cast<double>(response_window_.size());
+  double mx = 0.0, ms = 0.0;
+  for (const ResponsePoint& p : response_window_) {
+    mx += p.tip_x_mm;
+    ms += p.tip_s_mm;
+  }
+  mx /= n;
+  ms /= n;
+  double sxx = 0.0, sss = 0.0, sxs = 0.0;
+  for (const ResponsePoint& p : response_window_) {
+    const double dx = p.tip_x_mm - mx, ds = p.tip_s_mm - ms;
+    sxx += dx * dx;
+    sss += ds * ds;
+    sxs += dx * ds;
+  }
+  ResponseCheck& r = response_;
+  r.volumes = response_window_.size();
+  r.excitation_mm = std::sqrt(sxx / n);
+  r.gain = sxx > 0 ? sxs / sxx : 0.0;
+  r.gain_se =
+      sxx > 0 ? config_.tip_noise_mm / std::sqrt(sxx) : std::numeric_limits<double>::infinity();
+  r.correlation = sxx > 0 && sss > 0 ? sxs / std::sqrt(sxx * sss) : 0.0;
+  // No verdict while the catheter barely moves: the slope's error must be small against the
+  // gap between a responding image (k ≈ 1) and the threshold.
+  r.judged = r.volumes >= config_.response_min_volumes &&
+             r.excitation_mm >= config_.response_min_excitation_mm &&
+             r.gain_se <= config_.response_max_gain_se;
+  if (mode_ == FollowerMode::kFollowing && r.judged && r.gain < config_.response_min_gain &&
+      !(faults_ & follower_fault::kImageNotResponding)) {
+    ++counters_.image_not_responding_events;
+    Hold(now_s, follower_fault::kImageNotResponding);
+  }
 }
 
 void TargetFollower::Hold(double now_s, std::uint32_t fault) {
   if (mode_ != FollowerMode::kHolding && mode_ != FollowerMode::kRetracting &&
       mode_ != FollowerMode::kStopped) {
-    hold_mm_ = tip_mm_;
+    // A tip a hair past a travel end (it followed a clamped reference) holds at that end:
+    // holding is not a clamp.
+    hold_mm_ = std::clamp(tip_mm_, config_.travel_min_mm, config_.travel_max_mm);
     hold_since_s_ = now_s;
   }
   faults_ |= fault;
@@ -175,19 +249,26 @@ void TargetFollower::Update(double now_s, double tip_mm) {
   tip_history_.emplace_back(now_s, tip_mm);
   while (tip_history_.size() > 2 && tip_history_.front().first < now_s - 1.0)
     tip_history_.pop_front();
-  if (mode_ == FollowerMode::kDisabled || mode_ == FollowerMode::kStopped) {
-    if (mode_ == FollowerMode::kDisabled) hold_mm_ = tip_mm;
-    return;
+  if (mode_ == FollowerMode::kDisabled) hold_mm_ = tip_mm;
+  if (mode_ != FollowerMode::kDisabled && mode_ != FollowerMode::kStopped) {
+    const bool stale = !has_estimate_ || now_s - last_estimate_s_ > config_.stale_after_s ||
+                       !estimate_.target_motion.ValidAt(now_s);
+    if (mode_ == FollowerMode::kFollowing && stale) {
+      ++counters_.stale_events;
+      Hold(now_s, follower_fault::kStaleEstimate);
+    }
+    if (mode_ == FollowerMode::kHolding && now_s - hold_since_s_ >= config_.retract_after_s) {
+      mode_ = FollowerMode::kRetracting;
+      faults_ |= follower_fault::kRetracted;
+    }
   }
-  const bool stale = !has_estimate_ || now_s - last_estimate_s_ > config_.stale_after_s ||
-                     !estimate_.target_motion.ValidAt(now_s);
-  if (mode_ == FollowerMode::kFollowing && stale) {
-    ++counters_.stale_events;
-    Hold(now_s, follower_fault::kStaleEstimate);
-  }
-  if (mode_ == FollowerMode::kHolding && now_s - hold_since_s_ >= config_.retract_after_s) {
-    mode_ = FollowerMode::kRetracting;
-    faults_ |= follower_fault::kRetracted;
+  // The travel bit says whether the reference lies outside travel now (Evaluate sets it too).
+  const double x = Raw(now_s).position_mm;
+  reference_clamped_ = !(x >= config_.travel_min_mm && x <= config_.travel_max_mm);
+  if (reference_clamped_) {
+    faults_ |= follower_fault::kTravelLimit;
+  } else {
+    faults_ &= ~follower_fault::kTravelLimit;
   }
 }
 
@@ -201,7 +282,9 @@ MotionSample TargetFollower::Clamp(MotionSample m) const {
   return m;
 }
 
-MotionSample TargetFollower::Evaluate(double t_s) const {
+MotionSample TargetFollower::Evaluate(double t_s) const { return Clamp(Raw(t_s)); }
+
+MotionSample TargetFollower::Raw(double t_s) const {
   MotionSample m;
   switch (mode_) {
     case FollowerMode::kFollowing: {
@@ -213,11 +296,13 @@ MotionSample TargetFollower::Evaluate(double t_s) const {
       break;
     }
     case FollowerMode::kRetracting: {
-      const double travel = std::min(
-          config_.retract_mm, config_.retract_speed_mm_s *
-                                  std::max(0.0, t_s - hold_since_s_ - config_.retract_after_s));
+      // Back by retract_mm, or to the travel end if that is nearer: a retraction is not a clamp.
+      const double distance = std::clamp(hold_mm_ - config_.travel_min_mm, 0.0, config_.retract_mm);
+      const double travel =
+          std::min(distance, config_.retract_speed_mm_s *
+                                 std::max(0.0, t_s - hold_since_s_ - config_.retract_after_s));
       m.position_mm = hold_mm_ - travel;
-      m.velocity_mm_s = travel < config_.retract_mm ? -config_.retract_speed_mm_s : 0.0;
+      m.velocity_mm_s = travel < distance ? -config_.retract_speed_mm_s : 0.0;
       break;
     }
     case FollowerMode::kDisabled:
@@ -226,7 +311,7 @@ MotionSample TargetFollower::Evaluate(double t_s) const {
       m.position_mm = hold_mm_;
       break;
   }
-  return Clamp(m);
+  return m;
 }
 
 }  // namespace echoservo::control

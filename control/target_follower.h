@@ -7,10 +7,16 @@
 // image↔catheter offset and k their scale (estimate_scale; else k = 1), both fitted online.
 // Supervisor (Update, every cycle): disabled until Enable; Stop holds at once; a stale
 // estimate holds, then retracts; travel clamp; rejected estimates are counted and ignored.
+// Response check (check_response): over a sliding window of volumes, the slope of the imaged
+// tip s on the servo's tip x at acquisition; with enough excitation and a slope below
+// response_min_gain the image is not answering the catheter: fault kImageNotResponding
+// (latched until Enable), hold, then retract; c and k are frozen while it is active and c
+// never moves more than max_offset_change_mm from its first measurement.
 // Errors: std::invalid_argument for a bad config or a standoff outside [0, 30] mm.
 // Details: docs/control.md#following-the-target-controltarget_followerh
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <deque>
 #include <string>
@@ -45,6 +51,16 @@ struct FollowerConfig {
   double tip_noise_mm = 0.2;     // the detected tip's noise σ (weighs the prior), (0, 10]
   double min_confidence = 0.5;   // estimates below are ignored (counted)
   double max_future_s = 0.05;    // acquisition/publication this far ahead of now: rejected
+  // The image↔catheter offset stays within ± this of its first measurement, (0, 100] mm.
+  double max_offset_change_mm = 5.0;
+  // Response check (docs/control.md#the-image-response-check).
+  bool check_response = true;
+  double response_window_s = 2.0;           // volumes acquired this long before the newest, (0, 10]
+  double response_delay_s = 0.0;            // image behind its acquisition stamp, [0, 0.5] s
+  double response_min_excitation_mm = 0.3;  // SD of the tip over the window to judge, (0, 10]
+  double response_max_gain_se = 0.1;  // judge once tip_noise_mm/√Σ(x−x̄)² ≤ this, (0, 1]
+  std::size_t response_min_volumes = 8;  // volumes in the window to judge, [3, 10000]
+  double response_min_gain = 0.3;        // image mm per catheter mm below this: fault, [0, 1)
   // Throws std::invalid_argument naming the field.
   void Validate() const;
 };
@@ -59,6 +75,8 @@ inline constexpr std::uint32_t kRejectedEstimate = 1u << 1;
 inline constexpr std::uint32_t kTravelLimit = 1u << 2;
 inline constexpr std::uint32_t kStopRequested = 1u << 3;
 inline constexpr std::uint32_t kRetracted = 1u << 4;
+// The imaged tip does not follow the catheter's (response check): latched until Enable.
+inline constexpr std::uint32_t kImageNotResponding = 1u << 5;
 }  // namespace follower_fault
 
 struct FollowerCounters {
@@ -68,6 +86,18 @@ struct FollowerCounters {
   std::uint64_t rejected_time = 0;
   std::uint64_t rejected_confidence = 0;
   std::uint64_t stale_events = 0;
+  std::uint64_t image_not_responding_events = 0;  // response-check faults raised
+  std::uint64_t offset_bounded = 0;               // estimates whose offset hit its bound
+};
+
+// The response check's window, as of the newest accepted estimate.
+struct ResponseCheck {
+  std::size_t volumes = 0;
+  double excitation_mm = 0.0;  // SD of the servo's tip x over the window
+  double gain = 0.0;           // slope of the imaged tip s on x (image mm per catheter mm)
+  double gain_se = 0.0;        // its standard error from tip_noise_mm; inf without excitation
+  double correlation = 0.0;    // of s and x
+  bool judged = false;         // enough excitation and volumes for a verdict
 };
 
 class TargetFollower final : public Trajectory {
@@ -95,12 +125,17 @@ class TargetFollower final : public Trajectory {
   const FollowerCounters& counters() const { return counters_; }
   double offset_mm() const { return offset_mm_; }
   double scale() const { return scale_; }  // image mm per catheter mm (1 without estimate_scale)
+  const ResponseCheck& response() const { return response_; }
+  // The reference at the last Update's time lay outside the travel clamp.
+  bool reference_clamped() const { return reference_clamped_; }
   bool has_estimate() const { return has_estimate_; }
   double newest_acquired_s() const { return estimate_.acquired_s; }
   const FollowerConfig& config() const { return config_; }
 
  private:
-  double TipAt(double t_s) const;  // the servo's tip history, interpolated
+  double TipAt(double t_s) const;      // the servo's tip history, interpolated
+  MotionSample Raw(double t_s) const;  // the reference before the travel clamp
+  void CheckResponse(double acquired_s, double tip_axis_mm, double now_s);
   void Hold(double now_s, std::uint32_t fault);
   MotionSample Clamp(MotionSample m) const;  // sets kTravelLimit when it clamps
 
@@ -112,6 +147,13 @@ class TargetFollower final : public Trajectory {
   bool has_estimate_ = false;
   bool offset_known_ = false;
   double offset_mm_ = 0.0;
+  double offset_anchor_mm_ = 0.0;  // the first measured offset
+  bool reference_clamped_ = false;
+  ResponseCheck response_;
+  struct ResponsePoint {
+    double acquired_s, tip_x_mm, tip_s_mm;  // the servo's tip x and the imaged tip s
+  };
+  std::deque<ResponsePoint> response_window_;
   // The scale fit: weighted means of x_tip and s_tip, their (co)variance, and the slope.
   double scale_ = 1.0;
   double mean_x_ = 0.0, mean_s_ = 0.0, var_x_ = 0.0, cov_xs_ = 0.0;

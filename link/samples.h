@@ -67,7 +67,8 @@ inline constexpr std::uint32_t kForceLimit = 1u << 4;
 inline constexpr std::uint32_t kNonFinite = 1u << 5;
 inline constexpr std::uint32_t kHardware = 1u << 6;
 inline constexpr std::uint32_t kTrackerLost = 1u << 7;
-inline constexpr std::uint32_t kAll = (1u << 8) - 1;
+inline constexpr std::uint32_t kImageNotResponding = 1u << 8;  // imaged tip ignores the catheter
+inline constexpr std::uint32_t kAll = (1u << 9) - 1;
 }  // namespace fault
 
 struct CatheterStateSample {

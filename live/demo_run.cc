@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <deque>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -14,9 +15,11 @@
 #include <utility>
 #include <vector>
 
+#include "hw/io/durable_file.h"
+#include "hw/io/run_dir_guard.h"
 #include "hw/io/run_record.h"
 #include "hw/sim_em_tracker.h"
-#include "imaging/io/sequence_writer.h"
+#include "imaging/io/async_sequence_writer.h"
 #include "link/dds_link.h"
 #include "link/security.h"
 #include "live/delayed_scanner.h"
@@ -94,6 +97,7 @@ void DemoOptions::Validate() const {
   if (!(metrics_start_s >= 0 && metrics_start_s < duration_s))
     bad("--metrics-start", "must be in [0, duration)");
   if (save_volumes && out_dir.empty()) bad("--save-volumes", "needs --out RUN");
+  if (record_queue_volumes < 1) bad("--save-volumes", "needs a recorder queue of ≥ 1 volume");
   if (!(dds_domain >= 0 && dds_domain <= 232)) bad("--dds-domain", "must be in [0, 232]");
   if (!(guidewire_od_mm > 0 && sheath_id_mm > guidewire_od_mm && sheath_id_mm <= 5))
     bad("--sheath-id/--guidewire-od", "must satisfy 0 < guidewire < sheath ≤ 5 mm");
@@ -112,7 +116,9 @@ DemoResult RunDemo(const DemoOptions& o) {
   SimScene scene({o.rate_hz, o.heart_rate_bpm, o.target_p2p_mm, o.standoff_mm, o.seed});
   const Eigen::Isometry3d em_to_image = scene.em_to_image();
 
-  // The RUN directory (hw/io/run_record.h): run.json now, the streams as they come.
+  // The RUN directory (hw/io/run_record.h): run.json now, the streams as they come. If the
+  // demo fails, what it created there is removed so a retry with the same --out works.
+  hw::RunDirGuard run_guard(o.out_dir);
   std::unique_ptr<hw::RunWriter> writer;
   if (!o.out_dir.empty()) {
     hw::RunInfo info;
@@ -144,11 +150,14 @@ DemoResult RunDemo(const DemoOptions& o) {
   if (o.zero_order_hold) to.predictor = TargetPredictor::kZeroOrderHold;
   to.ekf.harmonics = o.harmonics;
   to.ekf.max_harmonics = std::max(to.ekf.max_harmonics, o.harmonics);
-  // The volumes as the tracker receives them, each on disk before the next is taken.
-  std::unique_ptr<imaging::SequenceWriter> recorder;
+  // The volumes as the tracker receives them, written on the recorder's own thread: the
+  // tracker hands each over after publishing and never waits for the disk (a full queue
+  // drops the volume, counted).
+  std::unique_ptr<imaging::AsyncSequenceWriter> recorder;
   if (o.save_volumes)
-    recorder = std::make_unique<imaging::SequenceWriter>(o.out_dir / "volumes.igs.mhd");
-  TrackerNode tracker(to, &target_pub, writer.get(), recorder.get());
+    recorder = std::make_unique<imaging::AsyncSequenceWriter>(o.out_dir / "volumes.igs.mhd",
+                                                              o.record_queue_volumes);
+  TrackerNode tracker(to, &target_pub, writer.get());
   SimCatheter catheter = MakeSimCatheter(o.sheath_id_mm, o.guidewire_od_mm, o.seed);
   hw::SimulatedCatheter& plant = *catheter.plant;
   ServoNodeOptions so;
@@ -179,10 +188,24 @@ DemoResult RunDemo(const DemoOptions& o) {
       const double arrived = clock.Now();
       const TrackedVolume r =
           tracker.Process(d->volume, d->acquired_s, arrived, [&] { return clock.Now(); });
-      if (!r.error.empty()) log("tracker: " + r.error);
       if (r.published) arrivals.Add(r.sequence, arrived);
+      if (recorder) recorder->Submit(std::move(d->volume));
+      if (!r.error.empty()) log("tracker: " + r.error);
     }
   });
+
+  // However this function is left (an exception in the servo loop included), the tracker
+  // thread is stopped and joined first: a joinable std::thread must not be destroyed.
+  struct TrackerJoin {
+    std::atomic<bool>& stop;
+    DelayedScanner& scanner;
+    std::thread& thread;
+    ~TrackerJoin() {
+      stop = true;
+      scanner.Stop();
+      if (thread.joinable()) thread.join();
+    }
+  } tracker_join{stop, scanner, tracker_thread};
 
   // Servo: 1 kHz on absolute deadlines, in this thread.
   std::vector<double> latency_ms;
@@ -190,6 +213,12 @@ DemoResult RunDemo(const DemoOptions& o) {
   std::uint64_t em_n = 0, true_n = 0;
   hw::SimEmTracker em(scene.em_options(), 0.0);
   const double period = catheter.servo.period_s;
+  // The newest applied estimate whose arrival the tracker has not noted yet (the servo can
+  // apply an estimate before the tracker thread is back from Publish): its latency is
+  // taken once the arrival is known, with the time it was applied.
+  std::optional<std::pair<std::uint64_t, double>> pending;  // sequence, applied_s
+  double last_latency_arrived_s = -std::numeric_limits<double>::infinity();
+  std::uint64_t latency_out_of_order = 0;
   servo.Start(0.0);
   for (std::uint64_t k = 0;; ++k) {
     const double t = static_cast<double>(k) * period;
@@ -197,11 +226,20 @@ DemoResult RunDemo(const DemoOptions& o) {
     std::this_thread::sleep_until(clock.At(t));
     if (clock.Now() > t + period) ++result.servo_overruns;
     const ServoCycle c = servo.Cycle(t, k);
-    if (c.applied_sequence) {
-      if (const std::optional<double> arrived = arrivals.Find(*c.applied_sequence)) {
-        const double applied = clock.Now();
-        latency_ms.push_back(1e3 * (applied - *arrived));
-        if (writer) writer->AddLatency({*arrived, applied});
+    if (c.applied_sequence) pending = std::make_pair(*c.applied_sequence, clock.Now());
+    if (pending) {
+      if (const std::optional<double> arrived = arrivals.Find(pending->first)) {
+        const double applied = pending->second;
+        // latency.csv's rows go in arrival order; an estimate applied after a newer one's
+        // (seen once under the sanitizers' load) is counted, not written out of order.
+        if (*arrived > last_latency_arrived_s) {
+          latency_ms.push_back(1e3 * (applied - *arrived));
+          if (writer) writer->AddLatency({*arrived, applied});
+          last_latency_arrived_s = *arrived;
+        } else {
+          ++latency_out_of_order;
+        }
+        pending.reset();
       }
     }
     const double tip_true = plant.truth().tip_mm;
@@ -258,14 +296,29 @@ DemoResult RunDemo(const DemoOptions& o) {
   result.true_tip_to_target_rms_mm =
       true_n ? std::sqrt(true_sq / static_cast<double>(true_n)) : 0.0;
   result.latency.count = latency_ms.size();
+  if (latency_out_of_order > 0)
+    log(Fmt("latency: %llu estimate(s) applied after a newer one, not scored",
+            static_cast<unsigned long long>(latency_out_of_order)));
   if (!latency_ms.empty()) {
     result.latency.p50_ms = report::Percentile(latency_ms, 0.5);
     result.latency.p99_ms = report::Percentile(latency_ms, 0.99);
     result.latency.max_ms = report::Percentile(latency_ms, 1.0);
   }
-  result.volumes_recorded = ts.recorded;
+  if (recorder) {  // what is queued is written, then synced
+    recorder->Close();
+    const imaging::AsyncRecorderStats rs = recorder->stats();
+    result.volumes_recorded = rs.written;
+    result.volumes_record_dropped = rs.dropped;
+    result.record_error = rs.error;
+    hw::ReplaceFileContents(o.out_dir / "volumes.json", recorder->SummaryJson());
+    if (!rs.error.empty()) log("volume recording stopped: " + rs.error);
+    if (rs.dropped > 0)
+      log(Fmt("volume recording: %llu of %llu volumes dropped (recorder queue of %zu full)",
+              static_cast<unsigned long long>(rs.dropped),
+              static_cast<unsigned long long>(rs.submitted), recorder->queue_capacity()));
+  }
   if (writer) writer->Flush();
-  if (recorder) recorder->SyncData();
+  run_guard.Keep();
   return result;
 }
 

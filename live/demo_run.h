@@ -11,6 +11,7 @@
 // Details: docs/live.md#the-demo
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -31,9 +32,12 @@ struct DemoOptions {
   std::uint64_t seed = 1;
   std::filesystem::path out_dir;  // the RUN directory (docs/report.md); empty: not written
   // Also record the volumes the tracker receives to out_dir/volumes.igs.mhd (+ .raw: a
-  // PLUS sequence, uncompressed, 4.9 MB a volume, each on disk as it is processed; see
-  // imaging/io/sequence_writer.h) for `echoservo track --replay`.
+  // PLUS sequence, uncompressed, 4.9 MB a volume; see imaging/io/sequence_writer.h) for
+  // `echoservo track --replay`. Written on a recorder thread through a queue of
+  // record_queue_volumes (imaging/io/async_sequence_writer.h): the tracker never waits
+  // for the disk; a volume that finds the queue full is dropped and counted.
   bool save_volumes = false;
+  std::size_t record_queue_volumes = 16;  // ≥ 1 (16: 78 MB)
   // The tracker's published motion: the EKF, or the zero-order-hold baseline.
   bool zero_order_hold = false;
   // The EKF's harmonic count, [1, 12] (TrackerNodeOptions::DefaultEkfOptions: 8, the mitral
@@ -63,10 +67,12 @@ struct DemoResult {
   std::uint64_t volumes = 0;               // acquired
   std::uint64_t detected = 0;              // volumes with a catheter found
   std::uint64_t dropped_frames = 0;  // not detected, skipped by a late tracker, or not acquired
-  std::uint64_t missed_acquisitions = 0;  // acquisition slots lost to a late renderer
-  std::uint64_t tracker_errors = 0;       // volumes the tracker could not process (logged)
-  std::uint64_t volumes_recorded = 0;     // --save-volumes: volumes written to volumes.igs.mhd
-  std::uint64_t estimates_accepted = 0;   // by the servo
+  std::uint64_t missed_acquisitions = 0;     // acquisition slots lost to a late renderer
+  std::uint64_t tracker_errors = 0;          // volumes the tracker could not process (logged)
+  std::uint64_t volumes_recorded = 0;        // --save-volumes: volumes written to volumes.igs.mhd
+  std::uint64_t volumes_record_dropped = 0;  // --save-volumes: not recorded (queue full, error)
+  std::string record_error;                  // --save-volumes: why the recording stopped
+  std::uint64_t estimates_accepted = 0;      // by the servo
   std::uint64_t estimates_rejected = 0;
   std::uint64_t em_samples = 0, em_dropouts = 0;
   std::uint64_t servo_cycles = 0, servo_overruns = 0;

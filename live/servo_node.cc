@@ -47,6 +47,7 @@ std::uint32_t ToLinkFaults(std::uint32_t f) {
   if (f & control::follower_fault::kStaleEstimate) out |= link::fault::kStaleEstimate;
   if (f & control::follower_fault::kRejectedEstimate) out |= link::fault::kInvalidEstimate;
   if (f & control::follower_fault::kTravelLimit) out |= link::fault::kTravelLimit;
+  if (f & control::follower_fault::kImageNotResponding) out |= link::fault::kImageNotResponding;
   return out;  // kStopRequested and kRetracted are modes, not faults
 }
 
@@ -144,8 +145,11 @@ bool ServoNode::ApplyTarget(const link::TargetEstimateSample& s, double t_s) {
     return false;
   }
   ++stats_.estimates_accepted;
+  // Auto-enable resumes after a lost tracker, never after the image stopped answering (that
+  // fault latches until an operator's ENABLE).
   if (o_.auto_enable &&
-      (!enabled_once_ || follower_.mode() == control::FollowerMode::kRetracting)) {
+      (!enabled_once_ || (follower_.mode() == control::FollowerMode::kRetracting &&
+                          !(follower_.faults() & control::follower_fault::kImageNotResponding)))) {
     if (enabled_once_) ++stats_.resumes;
     follower_.Enable(t_s);
     enabled_once_ = true;
@@ -204,14 +208,25 @@ ServoCycle ServoNode::Cycle(double t_s, std::uint64_t k) {
   // Limiter and hardware events since the last state.
   const control::CommandLimiter& lim = loop_.limiter();
   using control::LimitEvent;
-  if (lim.count(LimitEvent::kTravel) != last_travel_) pending_faults_ |= link::fault::kTravelLimit;
+  const bool limiter_clamped = lim.count(LimitEvent::kTravel) != last_travel_;
+  if (limiter_clamped) pending_faults_ |= link::fault::kTravelLimit;
+  // The follower's own clamp (its travel window lies inside the limiter's) is an
+  // intervention too: counted per cycle, like the limiter's.
+  const bool reference_clamped = follower_.reference_clamped();
+  if (reference_clamped) ++reference_clamps_;
+  out.clamped = reference_clamped || limiter_clamped;
+  if (out.clamped) {
+    ++stats_.clamp_cycles;
+    stats_.time_at_clamp_s += loop_.config().period_s;
+  }
   if (lim.count(LimitEvent::kNonFinite) != last_non_finite_)
     pending_faults_ |= link::fault::kNonFinite;
   if (lim.count(LimitEvent::kForce) != last_force_) pending_faults_ |= link::fault::kForceLimit;
   last_travel_ = lim.count(LimitEvent::kTravel);
   last_non_finite_ = lim.count(LimitEvent::kNonFinite);
   last_force_ = lim.count(LimitEvent::kForce);
-  stats_.limit_interventions = lim.faults();
+  stats_.limit_interventions = lim.faults() + reference_clamps_;
+  stats_.image_not_responding = follower_.counters().image_not_responding_events;
   const double hw_faults = hw_.state(fault_count_index_);
   if (hw_faults != last_hw_faults_) pending_faults_ |= link::fault::kHardware;
   last_hw_faults_ = hw_faults;

@@ -40,11 +40,16 @@ struct ServoNodeStats {
   std::uint64_t estimates_accepted = 0, estimates_rejected = 0;  // by the follower
   std::uint64_t commands_applied = 0, commands_rejected = 0;     // rejected: bad standoff
   std::uint64_t states_published = 0;
-  std::uint64_t resumes = 0;              // auto_enable after a retraction
-  std::uint64_t fault_events = 0;         // rising edges of fault bits
-  std::uint64_t limit_violations = 0;     // commanded travel/velocity/force outside the limits
-  std::uint64_t limit_interventions = 0;  // limiter faults (travel clamp, non-finite, force clamp)
-  std::uint64_t sensor_faults = 0;        // cycles with a non-finite base, tip or force reading
+  std::uint64_t resumes = 0;           // auto_enable after a retraction
+  std::uint64_t fault_events = 0;      // rising edges of fault bits
+  std::uint64_t limit_violations = 0;  // commanded travel/velocity/force outside the limits
+  // Every cycle a limit intervened: the follower's reference clamped to travel, and the
+  // limiter's faults (travel clamp, non-finite, force clamp), each counted per cycle.
+  std::uint64_t limit_interventions = 0;
+  std::uint64_t clamp_cycles = 0;          // cycles at a travel clamp (follower or limiter)
+  double time_at_clamp_s = 0.0;            // clamp_cycles × the servo period
+  std::uint64_t sensor_faults = 0;         // cycles with a non-finite base, tip or force reading
+  std::uint64_t image_not_responding = 0;  // response-check faults (follower)
 };
 
 struct ServoCycle {
@@ -52,6 +57,7 @@ struct ServoCycle {
   std::optional<std::uint64_t> applied_sequence;  // the estimate taken in this cycle
   link::ServoMode mode = link::ServoMode::kIdle;
   std::uint32_t faults = 0;
+  bool clamped = false;  // a travel clamp intervened in this cycle
 };
 
 link::ServoMode ToLinkMode(control::FollowerMode mode);
@@ -105,6 +111,7 @@ class ServoNode {
   std::uint64_t state_sequence_ = 0;
   std::uint32_t last_faults_ = 0;
   std::uint64_t last_travel_ = 0, last_non_finite_ = 0, last_force_ = 0;
+  std::uint64_t reference_clamps_ = 0;  // cycles the follower's reference was clamped
   double last_hw_faults_ = 0.0;
   std::uint32_t pending_faults_ = 0;  // limiter/hardware events since the last state
   control::CycleRecord last_;

@@ -1,7 +1,6 @@
 #include "live/tracker_node.h"
 
 #include "hw/io/run_record.h"
-#include "imaging/io/sequence_writer.h"
 
 namespace echoservo::live {
 
@@ -17,29 +16,17 @@ estimation::HeartbeatEkfOptions TrackerNodeOptions::DefaultEkfOptions() {
 }
 
 TrackerNode::TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher,
-                         hw::RunWriter* writer, imaging::SequenceWriter* recorder)
+                         hw::RunWriter* writer)
     : o_(std::move(options)),
       publisher_(publisher),
       writer_(writer),
-      recorder_(recorder),
       detector_(o_.detector),
-      ekf_(o_.ekf) {}
+      ekf_(o_.ekf),
+      significance_(o_.significance) {}
 
 TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double acquired_s,
                                    double arrived_s, const std::function<double()>& now_s) {
-  TrackedVolume out = Track(volume, acquired_s, arrived_s, now_s);
-  if (recorder_ == nullptr) return out;
-  try {  // after publishing: the disk is not on the estimate's path
-    recorder_->Append(volume);
-    ++stats_.recorded;
-  } catch (const std::exception& e) {  // recording stops; tracking goes on
-    ++stats_.record_errors;
-    const std::string msg = std::string("volume recording stopped at frame ") +
-                            std::to_string(recorder_->frames()) + ": " + e.what();
-    out.error = out.error.empty() ? msg : out.error + "; " + msg;
-    recorder_ = nullptr;
-  }
-  return out;
+  return Track(volume, acquired_s, arrived_s, now_s);
 }
 
 TrackedVolume TrackerNode::Track(const imaging::Volume& volume, double acquired_s, double arrived_s,
@@ -68,10 +55,16 @@ TrackedVolume TrackerNode::Track(const imaging::Volume& volume, double acquired_
   const double s_target = det.target_mm.dot(*reference_axis_);
   const bool hold = o_.predictor == TargetPredictor::kZeroOrderHold;
   try {
-    if (!hold) ekf_.Process(acquired_s, s_target);
+    if (!hold) {
+      ekf_.Process(acquired_s, s_target);
+      significance_.Add(acquired_s, s_target);
+      significance_.Evaluate();
+    }
   } catch (const std::exception& e) {  // a measurement out of order or non-finite
     return fail(e);
   }
+  // The EKF's heartbeat only when the trace shows one; else hold the newest measurement.
+  const bool heartbeat = !hold && significance_.evidence().significant;
   out.measured = true;
   ++stats_.measured;
   out.published_s = std::max(arrived_s, now_s());
@@ -83,7 +76,7 @@ TrackedVolume TrackerNode::Track(const imaging::Volume& volume, double acquired_
     s.target_mm = det.target_mm;
     s.axis = *reference_axis_;
     s.tip_mm = det.tip_mm;
-    if (hold) {  // s(t) = the newest measurement, valid as long as the EKF's model would be
+    if (!heartbeat) {  // s(t) = the newest measurement, valid as long as the EKF's model would be
       s.motion = estimation::FourierMotion{};
       s.motion.t0_s = acquired_s;
       s.motion.offset_mm = s_target;
@@ -93,13 +86,21 @@ TrackedVolume TrackerNode::Track(const imaging::Volume& volume, double acquired_
     }
     s.motion.t0_s += o_.link_offset_s;
     s.motion.valid_until_s += o_.link_offset_s;
-    s.confidence = det.confidence;
+    // The zero-order-hold baseline keeps the detector's confidence; the EKF's output is as
+    // credible as the heartbeat in the trace (0 when there is none: no invented heartbeat).
+    s.confidence = hold || (!heartbeat && o_.follow_static_target)
+                       ? det.confidence
+                       : det.confidence * significance_.evidence().confidence();
     out.sequence = s.sequence_number;
+    out.heartbeat = heartbeat;
+    out.confidence = s.confidence;
     out.published = publisher_->Publish(s);
-    if (out.published)
+    if (out.published) {
       ++stats_.published;
-    else
+      if (!hold) ++(heartbeat ? stats_.published_heartbeat : stats_.published_hold);
+    } else {
       ++stats_.publish_failures;
+    }
   }
   if (writer_)
     writer_->AddTarget({acquired_s, arrived_s, out.published_s, true, det.target_mm, det.tip_mm,

@@ -18,6 +18,7 @@
 #include <string>
 
 #include "estimation/heartbeat_ekf.h"
+#include "estimation/heartbeat_significance.h"
 #include "imaging/volume.h"
 #include "link/dds_link.h"
 #include "tracking/radon_detector.h"
@@ -25,21 +26,25 @@
 namespace echoservo::hw {
 class RunWriter;
 }
-namespace echoservo::imaging {
-class SequenceWriter;
-}
 
 namespace echoservo::live {
 
 // What the node publishes as the target's motion: the heartbeat EKF's prediction, or the
 // zero-order hold of the newest measurement (the baseline: a constant model, no
-// prediction through the delay).
+// prediction through the delay). With kHeartbeatEkf, the EKF's prediction goes out only
+// while the heartbeat significance test (estimation/heartbeat_significance.h) passes on the
+// measured trace; otherwise the zero-order hold goes out with confidence 0 (no heartbeat is
+// invented on a static or non-periodic target) and heartbeat().reason says why.
 enum class TargetPredictor { kHeartbeatEkf, kZeroOrderHold };
 
 struct TrackerNodeOptions {
   TargetPredictor predictor = TargetPredictor::kHeartbeatEkf;
   tracking::RadonDetectorOptions detector;
   estimation::HeartbeatEkfOptions ekf = DefaultEkfOptions();
+  estimation::HeartbeatSignificanceOptions significance;
+  // Without a significant heartbeat, publish the hold at the detector's confidence (a static
+  // phantom or bench target the servo should still follow) instead of at confidence 0.
+  bool follow_static_target = false;
   double link_offset_s = 0.0;  // link time − node time
 
   // The live defaults: a 2 s initial window, 8 harmonics.
@@ -51,6 +56,8 @@ struct TrackedVolume {
   tracking::CatheterDetection detection;
   bool measured = false;       // catheter and target found, EKF updated
   bool published = false;      // an estimate went out (EKF initialised, link present)
+  bool heartbeat = false;      // the EKF's heartbeat model went out (else a hold, if any)
+  double confidence = 0.0;     // the published confidence
   std::uint64_t sequence = 0;  // its sequence number
   double published_s = 0.0;    // node clock
   std::string error;           // non-empty when the volume could not be processed
@@ -59,26 +66,27 @@ struct TrackedVolume {
 struct TrackerStats {
   std::uint64_t volumes = 0, measured = 0, not_found = 0, published = 0, errors = 0,
                 publish_failures = 0;
-  std::uint64_t recorded = 0, record_errors = 0;  // volumes appended to the recorder
+  // Published estimates with the EKF's heartbeat, and held (no significant heartbeat).
+  std::uint64_t published_heartbeat = 0, published_hold = 0;
 };
 
 class TrackerNode {
  public:
-  // `publisher` (may be null: no link), `writer` (may be null: no RUN directory) and
-  // `recorder` (may be null: volumes not recorded) must outlive the node. Throws
-  // std::invalid_argument for bad options.
-  TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher, hw::RunWriter* writer,
-              imaging::SequenceWriter* recorder = nullptr);
+  // `publisher` (may be null: no link) and `writer` (may be null: no RUN directory) must
+  // outlive the node. Throws std::invalid_argument for bad options. Volumes are recorded by
+  // the caller (imaging::AsyncSequenceWriter, off the estimate's path).
+  TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher, hw::RunWriter* writer);
 
   // Processes one volume acquired at `acquired_s` that arrived at `arrived_s`; `now_s`
-  // gives the node clock (the publication time is taken after detection and EKF). Then
-  // appends the volume, as received, to the recorder; a recording error is reported in
-  // the result's `error` and ends the recording (tracking goes on).
+  // gives the node clock (the publication time is taken after detection and EKF).
   TrackedVolume Process(const imaging::Volume& volume, double acquired_s, double arrived_s,
                         const std::function<double()>& now_s);
 
   const TrackerStats& stats() const { return stats_; }
   const estimation::HeartbeatEkf& ekf() const { return ekf_; }
+  // The significance test on the newest measurements: whether a heartbeat is published, and
+  // why (not).
+  const estimation::HeartbeatEvidence& heartbeat() const { return significance_.evidence(); }
   // The axis direction of the link's coordinates (nullopt before the first detection).
   const std::optional<Eigen::Vector3d>& reference_axis() const { return reference_axis_; }
 
@@ -89,9 +97,9 @@ class TrackerNode {
   TrackerNodeOptions o_;
   link::TargetPublisher* publisher_;
   hw::RunWriter* writer_;
-  imaging::SequenceWriter* recorder_;
   tracking::RadonDetector detector_;
   estimation::HeartbeatEkf ekf_;
+  estimation::HeartbeatSignificance significance_;
   std::optional<Eigen::Vector3d> reference_axis_;
   std::uint64_t sequence_ = 0;
   TrackerStats stats_;

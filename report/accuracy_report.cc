@@ -33,6 +33,7 @@ constexpr const char* kTrackedColor = "#7b3294";
 constexpr const char* kErrorColor = "#222222";
 constexpr const char* kSeedColor = "#2e7d32";
 constexpr int kHalfWidth = 570;
+constexpr const char* kFollowingMode = "following";  // servo.csv: the servo tracks the target
 
 std::string Esc(std::string_view s) { return svg::EscapeHtml(s); }
 
@@ -43,6 +44,15 @@ double Rms(const std::vector<double>& v) {
   for (double x : v) s += x * x;
   return v.empty() ? kNaN : std::sqrt(s / static_cast<double>(v.size()));
 }
+
+}  // namespace
+
+std::string WindowText(const AccuracyMetrics& m) {
+  if (!std::isfinite(m.window_from_s)) return m.window_reason;
+  return "from " + Fix(m.window_from_s, 2) + " s: " + m.window_reason;
+}
+
+namespace {
 
 // `field` (tip_mm or target_mm) of the volumes where the target was found, at acquired_s.
 PointSeries FoundVolumes(const hw::RunRecord& run, Eigen::Vector3d hw::TargetRecord::*field) {
@@ -147,6 +157,28 @@ void BeatAndPhase(const estimation::FourierMotion& motion, int bins, AccuracyMet
     m.phase_rms_mm.push_back(Rms(errors));
     m.phase_samples.push_back(errors.size());
   }
+}
+
+// The scored window: options.from_s when finite, else from the first servo.csv row in the
+// following mode (control/target_follower.cc names it "following"), else the whole run.
+void SetWindow(const hw::RunRecord& run, const AccuracyOptions& o, AccuracyMetrics& m) {
+  if (std::isfinite(o.from_s)) {
+    m.window_from_s = o.from_s;
+    m.window_reason = o.from_reason;
+    return;
+  }
+  if (!run.has_servo || run.servo.empty()) {
+    m.window_reason = "whole run: no servo.csv";
+    return;
+  }
+  for (const hw::ServoRecord& r : run.servo) {
+    if (r.mode == kFollowingMode) {
+      m.window_from_s = r.t_s;
+      m.window_reason = "servo began following";
+      return;
+    }
+  }
+  m.window_reason = "whole run: servo.csv has no '" + std::string(kFollowingMode) + "' row";
 }
 
 DroppedFrames CountDropped(const hw::RunRecord& run) {
@@ -301,7 +333,8 @@ std::string AlignmentHtml(const AccuracyMetrics& m) {
   s +=
       Row({"tracked tip spread, principal SDs (mm)",
            Fix(a.spread_mm[0], 2) + ", " + Fix(a.spread_mm[1], 2) + ", " + Fix(a.spread_mm[2], 2)});
-  s += Row({"transform", a.fixed_transform ? "given (--em-to-image)" : "estimated"});
+  s += Row({"transform", a.fixed_transform ? "given (" + Esc(m.transform_source) + ")"
+                                           : std::string("estimated")});
   s += "</table><p class=\"note\">em_to_image (mm):</p><table>";
   const Eigen::Matrix4d t = a.em_to_image.matrix();
   for (int r = 0; r < 4; ++r) {
@@ -317,7 +350,20 @@ std::string AlignmentHtml(const AccuracyMetrics& m) {
                      280};
   grid.lines.push_back(
       {"closed-form pose at each offset", a.grid_offset_s, a.grid_rms_mm, kTrackedColor, 1.5});
-  return s + svg::RenderLinePlot(grid) + "</section>";
+  s += svg::RenderLinePlot(grid);
+  s += "<h3>Plausibility checks</h3><table>" +
+       Row({"check", "value", "bound", "passed", "why it failed"}, "", true);
+  for (const AlignmentCheck& c : m.checks) {
+    const bool at_least = c.name == "motion correlation" || c.name == "overlap";
+    const std::string unit = c.name == "registration"   ? " mm"
+                             : c.name == "clock offset" ? " s"
+                                                        : "";
+    s += Row({Esc(c.name), Fix(c.value, 3) + unit,
+              (at_least ? "&ge; " : "&le; ") + Fix(c.bound, 3) + unit, html::Tag(c.passed),
+              Esc(c.message)},
+             c.passed ? "" : "sig");
+  }
+  return s + "</table></section>";
 }
 
 std::string EmHtml(const AccuracyMetrics& m, const AccuracyReportOptions& o) {
@@ -409,14 +455,33 @@ AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
   AccuracyMetrics m;
   m.em = em;
   const PointSeries em_points = ValidEmPoints(em);
-  m.alignment =
-      AlignEmToImage(em_points, FoundVolumes(run, &hw::TargetRecord::tip_mm), o.alignment);
+  const PointSeries image_tip = FoundVolumes(run, &hw::TargetRecord::tip_mm);
+  m.alignment = AlignEmToImage(em_points, image_tip, o.alignment);
+  m.transform_source = m.alignment.fixed_transform ? o.transform_source : "estimated";
+  // Every alignment, estimated or given, must show that the log belongs to this run before
+  // a figure is given.
+  m.checks = CheckAlignment(em_points, image_tip, m.alignment, o.checks);
+  std::string failed;
+  for (const AlignmentCheck& c : m.checks) {
+    if (c.passed) continue;
+    m.warnings.push_back(c.message);
+    failed += "; " + c.message;
+  }
+  if (!m.warnings.empty()) {
+    if (!o.force) {
+      throw std::invalid_argument(
+          "EM log refused: " + failed.substr(2) +
+          ". (--force gives the figures anyway, marked as not trustworthy)");
+    }
+    m.forced = true;
+  }
+  SetWindow(run, o, m);
   const PointSeries target = TargetSeries(run);
   m.target_source = run.has_truth ? "truth.csv" : "targets.csv";
   const double target_gap = kGapPeriods * target.MedianPeriodS();
   for (std::size_t i = 0; i < em_points.size(); ++i) {
     const double t = em_points.t_s[i] + m.alignment.em_time_offset_s;
-    if (t < o.from_s) continue;
+    if (t < m.window_from_s) continue;
     const auto goal = target.At(t, target_gap);
     if (!goal) continue;
     const Eigen::Vector3d tip = m.alignment.em_to_image * em_points.p_mm[i];
@@ -428,7 +493,8 @@ AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
   if (m.error_mm.empty()) {
     throw std::invalid_argument("accuracy: no valid EM sample falls within the target series (" +
                                 m.target_source + ") after the clock offset of " +
-                                Fix(m.alignment.em_time_offset_s, 3) + " s");
+                                Fix(m.alignment.em_time_offset_s, 3) + " s in the window " +
+                                WindowText(m));
   }
   m.rms_mm = Rms(m.error_mm);
   double sum = 0.0;
@@ -471,46 +537,63 @@ std::string AccuracyJson(const AccuracyMetrics& m, const AccuracyReportOptions& 
   for (const auto& [reason, count] : m.em.dropouts_by_reason) dropouts[reason] = count;
   Json modes = Json::object();
   for (const auto& [mode, seconds] : m.servo_mode_s) modes[mode] = seconds;
-  const Json j = {{"run", o.run_path},
-                  {"em_log", o.em_path},
-                  {"em_format", hw::EmLogFormatName(m.em.format)},
-                  {"em_sensor", m.em.sensor},
-                  {"target_source", m.target_source},
-                  {"tip_to_target_rms_mm", m.rms_mm},
-                  {"tip_to_target_mean_mm", m.mean_mm},
-                  {"tip_to_target_p95_mm", m.p95_mm},
-                  {"tip_to_target_max_mm", m.max_mm},
-                  {"evaluated_samples", m.error_mm.size()},
-                  {"reference_rms_mm", o.reference_rms_mm},
-                  {"heart_rate_hz", m.heart_rate_hz > 0.0 ? Json(m.heart_rate_hz) : Json(nullptr)},
-                  {"heart_rate_source", m.heart_rate_source},
-                  {"per_beat_rms_mm", per_beat},
-                  {"beats", beats},
-                  {"phase_rms_mm", m.phase_rms_mm},
-                  {"phase_samples", m.phase_samples},
-                  {"latency_ms", TimingJson(m.latency)},
-                  {"pipeline_latency_ms", TimingJson(m.pipeline)},
-                  {"dropped_frames", m.dropped.total()},
-                  {"dropped",
-                   {{"volumes", m.dropped.volumes},
-                    {"not_found", m.dropped.not_found},
-                    {"gaps", m.dropped.gaps},
-                    {"missing_in_gaps", m.dropped.missing_in_gaps},
-                    {"median_period_s", m.dropped.median_period_s}}},
-                  {"em_time_offset_s", m.alignment.em_time_offset_s},
-                  {"registration_rms_mm", m.alignment.residual_rms_mm},
-                  {"registration_max_mm", m.alignment.residual_max_mm},
-                  {"registration_pairs", m.alignment.pairs},
-                  {"em_to_image", transform},
-                  {"em_to_image_rotation_deg", RotationAngleDeg(m.alignment.em_to_image)},
-                  {"em_to_image_given", m.alignment.fixed_transform},
-                  {"em_samples", m.em.samples.size()},
-                  {"em_valid_samples", m.em.valid_samples()},
-                  {"em_dropouts", m.em.dropouts()},
-                  {"em_dropouts_by_reason", dropouts},
-                  {"servo_faults", m.servo_faults},
-                  {"servo_mode_s", modes},
-                  {"notes", m.notes}};
+  Json checks = Json::array();
+  for (const AlignmentCheck& c : m.checks) {
+    checks.push_back({{"name", c.name},
+                      {"value", c.value},
+                      {"bound", c.bound},
+                      {"passed", c.passed},
+                      {"message", c.message}});
+  }
+  const Json j = {
+      {"run", o.run_path},
+      {"em_log", o.em_path},
+      {"em_format", hw::EmLogFormatName(m.em.format)},
+      {"em_sensor", m.em.sensor},
+      {"target_source", m.target_source},
+      {"tip_to_target_rms_mm", m.rms_mm},
+      {"tip_to_target_mean_mm", m.mean_mm},
+      {"tip_to_target_p95_mm", m.p95_mm},
+      {"tip_to_target_max_mm", m.max_mm},
+      {"evaluated_samples", m.error_mm.size()},
+      {"reference_rms_mm", o.reference_rms_mm},
+      {"heart_rate_hz", m.heart_rate_hz > 0.0 ? Json(m.heart_rate_hz) : Json(nullptr)},
+      {"heart_rate_source", m.heart_rate_source},
+      {"per_beat_rms_mm", per_beat},
+      {"beats", beats},
+      {"phase_rms_mm", m.phase_rms_mm},
+      {"phase_samples", m.phase_samples},
+      {"latency_ms", TimingJson(m.latency)},
+      {"pipeline_latency_ms", TimingJson(m.pipeline)},
+      {"dropped_frames", m.dropped.total()},
+      {"dropped",
+       {{"volumes", m.dropped.volumes},
+        {"not_found", m.dropped.not_found},
+        {"gaps", m.dropped.gaps},
+        {"missing_in_gaps", m.dropped.missing_in_gaps},
+        {"median_period_s", m.dropped.median_period_s}}},
+      {"em_time_offset_s", m.alignment.em_time_offset_s},
+      {"registration_rms_mm", m.alignment.residual_rms_mm},
+      {"registration_max_mm", m.alignment.residual_max_mm},
+      {"registration_pairs", m.alignment.pairs},
+      {"em_to_image", transform},
+      {"em_to_image_rotation_deg", RotationAngleDeg(m.alignment.em_to_image)},
+      {"em_to_image_given", m.alignment.fixed_transform},
+      {"em_to_image_source", m.transform_source},
+      {"window",
+       {{"from_s", std::isfinite(m.window_from_s) ? Json(m.window_from_s) : Json(nullptr)},
+        {"reason", m.window_reason},
+        {"text", WindowText(m)}}},
+      {"checks", checks},
+      {"forced", m.forced},
+      {"warnings", m.warnings},
+      {"em_samples", m.em.samples.size()},
+      {"em_valid_samples", m.em.valid_samples()},
+      {"em_dropouts", m.em.dropouts()},
+      {"em_dropouts_by_reason", dropouts},
+      {"servo_faults", m.servo_faults},
+      {"servo_mode_s", modes},
+      {"notes", m.notes}};
   return j.dump(2);
 }
 
@@ -529,6 +612,8 @@ std::string RenderAccuracyReport(const hw::RunRecord& run, const AccuracyMetrics
                                            : std::string("&ndash;")},
       {"Evaluated",
        std::to_string(m.error_mm.size()) + " EM samples over " + Fix(duration, 1) + " s"},
+      {"Window", Esc(WindowText(m))},
+      {"EM&rarr;image transform", Esc(m.transform_source)},
       {"Generated", Esc(o.generated.empty() ? html::NowUtc() : o.generated)},
   };
   std::string page = html::PageStart("Accuracy report: " + Esc(o.run_path));
@@ -536,6 +621,14 @@ std::string RenderAccuracyReport(const hw::RunRecord& run, const AccuracyMetrics
                           "echoservo &middot; the catheter tip measured by the EM tracker against "
                           "the target, and the pipeline's timing",
                           facts);
+  if (m.forced) {
+    page +=
+        "<div class=\"verdict miss\" id=\"forced\"><b>Warning: figures forced (--force).</b> "
+        "The EM log failed the plausibility checks below, so these figures may not measure "
+        "this run:<ol class=\"evidence\">";
+    for (const std::string& w : m.warnings) page += "<li>" + Esc(w) + "</li>";
+    page += "</ol></div>\n";
+  }
   page +=
       "<nav class=\"toc\"><a href=\"#summary\">Summary</a><a href=\"#error\">Error over time</a>"
       "<a href=\"#beats\">Per beat and phase</a><a href=\"#latency\">Latency</a><a "

@@ -6,8 +6,10 @@
 // sample (RMS, mean, p95, max; overall, per beat and by heartbeat phase), latency and
 // pipeline time (p50/p95/p99/max/mean), dropped frames, EM drop-outs and servo faults and
 // modes, as JSON (AccuracyJson) and one self-contained HTML page (RenderAccuracyReport).
-// Units: mm, s (ms for latencies), image frame. Errors: std::invalid_argument when the
-// alignment refuses or no EM sample overlaps the target after alignment.
+// The figures cover a window: from --from, else from when the servo began following
+// (servo.csv), else the whole run. Units: mm, s (ms for latencies), image frame. Errors:
+// std::invalid_argument when the alignment refuses, a plausibility check fails (unless
+// forced), or no EM sample overlaps the target after alignment.
 // Details: docs/report.md#metrics
 #pragma once
 
@@ -30,8 +32,15 @@ struct AccuracyOptions {
   double min_rate_hz = 0.6;  // heart-rate search when run.json has none
   double max_rate_hz = 3.0;
   // Figures from this pipeline time on (s; the alignment uses the whole run): a run's start
-  // (tracker initialising, servo catching up) is not what it is judged on.
+  // (tracker initialising, servo catching up) is not what it is judged on. Not finite: from
+  // servo.csv's first row in the following mode, else the whole run.
   double from_s = -std::numeric_limits<double>::infinity();
+  std::string from_reason = "--from";  // why from_s, when it is finite
+  // Where a given alignment.em_to_image came from ("--em-to-image", "run.json").
+  std::string transform_source = "--em-to-image";
+  AlignmentCheckLimits checks;
+  // Give the figures even when a plausibility check fails (warnings, forced = true).
+  bool force = false;
 };
 
 struct BeatError {
@@ -77,12 +86,24 @@ struct AccuracyMetrics {
   double servo_faults = 0.0;
   std::map<std::string, double> servo_mode_s;  // time in each servo mode
   std::vector<std::string> notes;
+  // The scored window: from window_from_s (−inf: the whole run) on, and why.
+  double window_from_s = -std::numeric_limits<double>::infinity();
+  std::string window_reason;
+  std::string transform_source;  // "--em-to-image", "run.json" or "estimated"
+  std::vector<AlignmentCheck> checks;
+  bool forced = false;                // a check failed and options.force gave the figures
+  std::vector<std::string> warnings;  // the failed checks' messages
 };
 
-// Throws std::invalid_argument when the alignment refuses, or no EM sample overlaps the
-// target after alignment.
+// Throws std::invalid_argument when the alignment refuses, a plausibility check
+// (CheckAlignment) fails without options.force, or no EM sample overlaps the target after
+// alignment within the scored window.
 AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
                                 const AccuracyOptions& options = {});
+
+// The scored window in words: "from 2.10 s: servo began following", "from 3.00 s: --from",
+// "whole run: no servo.csv".
+std::string WindowText(const AccuracyMetrics& metrics);
 
 // p in [0, 1] of `values` by linear interpolation between order statistics; NaN when empty.
 double Percentile(std::vector<double> values, double p);

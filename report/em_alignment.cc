@@ -171,6 +171,89 @@ PointSeries ValidEmPoints(const hw::EmLog& log) {
   return s;
 }
 
+std::vector<AlignmentCheck> CheckAlignment(const PointSeries& em, const PointSeries& image,
+                                           const EmAlignment& a, const AlignmentCheckLimits& l) {
+  std::vector<AlignmentCheck> checks;
+  const Pairs p = Collect(em, image, a.em_time_offset_s, a.max_gap_s);
+  const auto n = p.em.cols();
+
+  AlignmentCheck reg{"registration", a.residual_rms_mm, l.max_registration_rms_mm, true, ""};
+  reg.passed = a.residual_rms_mm <= l.max_registration_rms_mm;
+  if (!reg.passed) {
+    reg.message = "registration RMS " + Num(a.residual_rms_mm, 3) + " mm exceeds the " +
+                  Num(l.max_registration_rms_mm, 2) + " mm bound (EM tracker " +
+                  Num(AlignmentCheckLimits::kEmTrackerAccuracyMm, 2) + " mm + detector " +
+                  Num(AlignmentCheckLimits::kDetectorTipAccuracyMm, 2) +
+                  " mm): the EM log does not follow this run's tip (wrong log, sensor or "
+                  "transform?)";
+  }
+  checks.push_back(reg);
+
+  // The search window is centre ± max_offset; an offset on its edge means the true one may
+  // lie beyond it. A window narrower than two grid steps pins the offset: nothing to check.
+  const double from_centre = std::abs(a.em_time_offset_s - a.offset_center_s);
+  AlignmentCheck off{"clock offset", from_centre, a.max_offset_s - a.grid_step_s, true, ""};
+  if (a.max_offset_s >= 2.0 * a.grid_step_s) {
+    off.passed = from_centre <= off.bound;
+    if (!off.passed) {
+      off.message = "the clock offset " + Num(a.em_time_offset_s, 4) +
+                    " s lies at the edge of the search window " + Num(a.offset_center_s, 3) +
+                    " ± " + Num(a.max_offset_s, 3) + " s (" + Num(from_centre, 3) +
+                    " s from its centre, more than " + Num(off.bound, 3) +
+                    " s): the true offset is likely beyond it (a log of another time?); widen "
+                    "--max-offset or set --offset-center";
+    }
+  }
+  checks.push_back(off);
+
+  AlignmentCheck cor{"motion correlation", 0.0, l.min_motion_correlation, true, ""};
+  double em_spread = 0.0, tip_spread = 0.0;
+  if (n >= 2) {
+    const Eigen::Matrix3Xd mapped =
+        (a.em_to_image.linear() * p.em).colwise() + a.em_to_image.translation();
+    const Eigen::Matrix3Xd centred = p.img.colwise() - p.img.rowwise().mean();
+    const Eigen::Vector3d axis =
+        Eigen::JacobiSVD<Eigen::Matrix3Xd>(centred, Eigen::ComputeThinU).matrixU().col(0);
+    const Eigen::RowVectorXd x = axis.transpose() * mapped, y = axis.transpose() * p.img;
+    const Eigen::RowVectorXd xc = x.array() - x.mean(), yc = y.array() - y.mean();
+    const double sxx = xc.squaredNorm(), syy = yc.squaredNorm();
+    cor.value = sxx > 0.0 && syy > 0.0 ? xc.dot(yc) / std::sqrt(sxx * syy) : 0.0;
+    em_spread = Spread(p.em)[0];
+    tip_spread = Spread(p.img)[0];
+  }
+  cor.passed = cor.value >= l.min_motion_correlation;
+  if (!cor.passed) {
+    cor.message = "the EM sensor's motion does not follow the tracked tip's: correlation " +
+                  Num(cor.value, 3) + " along the tip's principal axis (at least " +
+                  Num(l.min_motion_correlation, 2) + " needed); principal spread EM " +
+                  Num(em_spread, 3) + " mm, tracked tip " + Num(tip_spread, 3) +
+                  " mm (wrong sensor or file?)";
+  }
+  checks.push_back(cor);
+
+  double paired_span = 0.0;
+  {
+    double first = kNoValue, last = kNoValue;
+    for (std::size_t i = 0; i < image.size(); ++i) {
+      if (!em.At(image.t_s[i] - a.em_time_offset_s, a.max_gap_s)) continue;
+      if (!std::isfinite(first)) first = image.t_s[i];
+      last = image.t_s[i];
+    }
+    if (std::isfinite(first)) paired_span = last - first;
+  }
+  const double span = image.size() >= 2 ? image.t_s.back() - image.t_s.front() : 0.0;
+  AlignmentCheck ov{"overlap", span > 0.0 ? paired_span / span : 0.0, l.min_overlap_share, true,
+                    ""};
+  ov.passed = ov.value >= l.min_overlap_share;
+  if (!ov.passed) {
+    ov.message = "the EM log overlaps " + Num(paired_span, 2) + " s of the tracked tips' " +
+                 Num(span, 2) + " s (" + Num(100.0 * ov.value, 0) + " %; at least " +
+                 Num(100.0 * l.min_overlap_share, 0) + " % needed: a log of another run?)";
+  }
+  checks.push_back(ov);
+  return checks;
+}
+
 double RotationAngleDeg(const Eigen::Isometry3d& transform) {
   return Eigen::AngleAxisd(transform.rotation()).angle() * 180.0 / std::numbers::pi;
 }
@@ -213,6 +296,7 @@ EmAlignment AlignEmToImage(const PointSeries& em, const PointSeries& image,
 
   const double em_period = em.MedianPeriodS();
   const double max_gap = o.max_gap_s > 0.0 ? o.max_gap_s : kMaxGapPeriods * em_period;
+  a.max_gap_s = max_gap;
   a.offset_center_s =
       std::isfinite(o.offset_center_s) ? o.offset_center_s : image.t_s.front() - em.t_s.front();
   a.max_offset_s = o.max_offset_s;

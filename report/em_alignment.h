@@ -7,7 +7,9 @@
 // Ceres refinement of offset and pose together; with a known em_to_image only the offset.
 // Refuses (std::invalid_argument saying why and what to record instead): too few samples or
 // pairs, a tip that hardly moved or moved along a line (spread < min_spread_mm), a
-// similarity scale far from 1 (inches read as mm, or the reverse). Units: mm, s.
+// similarity scale far from 1 (inches read as mm, or the reverse). CheckAlignment then judges
+// any alignment, estimated or given: registration residual, clock offset inside its window,
+// motion correlation and overlap. Units: mm, s.
 // Details: docs/report.md#alignment-clock-offset-and-emimage-registration
 #pragma once
 
@@ -16,6 +18,7 @@
 #include <cstddef>
 #include <limits>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "hw/io/em_log.h"
@@ -64,6 +67,7 @@ struct EmAlignment {
   double offset_center_s = 0.0;                         // the search window actually used
   double max_offset_s = 0.0;
   double grid_step_s = 0.0;
+  double max_gap_s = 0.0;             // EM interpolation never bridges a longer gap
   bool fixed_transform = false;       // em_to_image was given
   int iterations = 0;                 // Ceres
   std::vector<double> grid_offset_s;  // the coarse search, for a plot
@@ -74,6 +78,44 @@ struct EmAlignment {
 // frame. Throws std::invalid_argument (see above) and for inconsistent options.
 EmAlignment AlignEmToImage(const PointSeries& em, const PointSeries& image_tip,
                            const EmAlignmentOptions& options = {});
+
+// Plausibility of an alignment, estimated or given: does the EM log belong to this run?
+// Each check has a value, a bound and a message saying why it failed (with the numbers).
+// Sources of the bounds: docs/report.md#plausibility-checks.
+struct AlignmentCheck {
+  std::string name;  // "registration", "clock offset", "motion correlation", "overlap"
+  double value = 0.0;
+  double bound = 0.0;
+  bool passed = true;
+  std::string message;  // why it failed; empty when it passed
+};
+
+struct AlignmentCheckLimits {
+  // Registration residual RMS bound: the EM tracker's stated accuracy plus the detector's.
+  // The seed's tracker, the Ascension (now NDI) 3D Guidance trakSTAR with a model 180
+  // sensor, states a static position accuracy of 1.4 mm RMS (3D Guidance technical
+  // specifications); an NDI Aurora states 0.48-0.70 mm RMS, so 1.4 mm covers both.
+  static constexpr double kEmTrackerAccuracyMm = 1.4;
+  // The Radon detector's tip error: every case of tests/tracking/radon_detector_test.cc is
+  // asserted below 1 mm (worst measured 0.58 mm; p95 up to 0.92 mm in the accuracy
+  // harness's wide poses, docs/detector.md).
+  static constexpr double kDetectorTipAccuracyMm = 1.0;
+  double max_registration_rms_mm = kEmTrackerAccuracyMm + kDetectorTipAccuracyMm;
+  // Pearson correlation of the mapped EM tip and the tracked tip along the tracked tip's
+  // principal axis. The right log correlates at s/√(s² + σ²) (s the motion's SD along the
+  // axis, at least 1 mm or the alignment refuses; σ the per-axis residual): > 0.95 for
+  // σ ≤ 0.3 mm. Another heartbeat's motion, with few independent beats, can correlate by
+  // chance up to about 0.5; a still sensor correlates near 0.
+  double min_motion_correlation = 0.7;
+  // The pairs (EM interpolated at a tracked tip) must span this share of the tracked tips'
+  // time span.
+  double min_overlap_share = 0.5;
+};
+
+// Runs every check on `alignment` (from AlignEmToImage on the same `em` and `image_tip`).
+std::vector<AlignmentCheck> CheckAlignment(const PointSeries& em, const PointSeries& image_tip,
+                                           const EmAlignment& alignment,
+                                           const AlignmentCheckLimits& limits = {});
 
 // Rotation angle of a transform's linear part, degrees.
 double RotationAngleDeg(const Eigen::Isometry3d& transform);

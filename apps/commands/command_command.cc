@@ -5,6 +5,7 @@
 // --secure DIR it is the "operator" identity there (a servo started with --secure only
 // matches participants whose credentials its CA issued and whose permissions allow it).
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -73,9 +74,24 @@ void RunCommand(const CommandArgs& a) {
   }
   link::CommandPublisher& pub = *pub_owner;
   link::StateSubscriber state(participant);
-  if (!pub.WaitForSubscribers(1, a.wait_s))
-    throw std::runtime_error("command: no servo on DDS domain " + std::to_string(a.link.domain) +
-                             (secure ? " that accepts these credentials" : "") + " within --wait");
+  // Waits for a servo, saying where it looks every second while none is there.
+  const std::string where = DescribeLink(a.link) + ", topic " + std::string(link::kCommandTopic);
+  bool found = false;
+  for (double waited_s = 0; !found && waited_s < a.wait_s;) {
+    const double slice_s = std::min(1.0, a.wait_s - waited_s);
+    found = pub.WaitForSubscribers(1, slice_s);
+    waited_s += slice_s;
+    if (!found && waited_s < a.wait_s)
+      std::fprintf(stderr, "command: no servo on %s, after %.0f s; still waiting (--wait %g s)\n",
+                   where.c_str(), waited_s, a.wait_s);
+  }
+  if (!found) {
+    char wait[32];
+    std::snprintf(wait, sizeof wait, "%g", a.wait_s);
+    throw std::runtime_error("command " + a.action + ": no servo on " + where +
+                             (secure ? " that accepts these credentials" : "") + " within --wait " +
+                             wait + " s");
+  }
   c.stamp_s = link::NowS();
   c.sequence_number = static_cast<std::uint64_t>(c.stamp_s * 1e6);
   if (!pub.Publish(c)) throw std::runtime_error("command: DDS refused the write");

@@ -72,6 +72,7 @@ void RunDemoCommand(const DemoArgs& a) {
         {"tracker_errors", r.tracker_errors},
         {"volumes", r.volumes},
         {"volumes_recorded", r.volumes_recorded},
+        {"volumes_record_dropped", r.volumes_record_dropped},
         {"detected", r.detected},
         {"estimates_accepted", r.estimates_accepted},
         {"estimates_rejected", r.estimates_rejected},
@@ -117,6 +118,11 @@ void RunDemoCommand(const DemoArgs& a) {
       static_cast<unsigned long long>(r.dropped_frames),
       static_cast<unsigned long long>(r.em_samples), static_cast<unsigned long long>(r.em_dropouts),
       static_cast<unsigned long long>(r.servo_overruns));
+  if (a.options.save_volumes)
+    std::printf("volumes recorded %llu, dropped by the recorder %llu%s%s\n",
+                static_cast<unsigned long long>(r.volumes_recorded),
+                static_cast<unsigned long long>(r.volumes_record_dropped),
+                r.record_error.empty() ? "" : "; recording stopped: ", r.record_error.c_str());
   if (zoh)
     std::printf(
         "baseline (zero-order hold, same process): %.3f mm (EM), %.3f mm (true tip): %.1f× the "
@@ -171,7 +177,7 @@ void AddLiveCommands(CLI::App& app) {
                    "write the run (RUN directory: targets, servo, latency, EM log, truth)");
   demo->add_flag("--save-volumes", o.save_volumes,
                  "also record the volumes the tracker receives to RUN/volumes.igs.mhd (+ .raw), "
-                 "each as it is processed, "
+                 "on a recorder thread (a full queue drops, counted), "
                  "for `track --replay`");
   demo->add_flag("--baseline", args->baseline,
                  "then run the same demo with a zero-order hold instead of the EKF (same process) "

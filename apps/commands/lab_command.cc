@@ -28,7 +28,7 @@ namespace {
 
 struct LabFlags {
   std::string dataset;
-  std::string model = "seed";
+  std::string model;  // empty: seed for a dataset, heartbeat:2 for a motion trace
   bool skip_bad = false;
   bool json = false;
   int stride = 4;
@@ -50,7 +50,7 @@ struct Model {
 Model ResolveModel(const LabFlags& f) {
   Model m;
   m.catalog = &BuildCatalog(f.catalog);
-  m.effects = hw::ResolveModelSpec(f.model, *m.catalog);
+  m.effects = hw::ResolveModelSpec(f.model.empty() ? "seed" : f.model, *m.catalog);
   m.spec = hw::FormatModelSpec(m.effects, *m.catalog);
   return m;
 }
@@ -89,10 +89,81 @@ std::string ProposeDir(const LabFlags& f) {
   return p.string() + "_proposal";
 }
 
-// A regular file is a target-motion trace (the motion lab); a folder a catheter dataset.
+// The columns of a file's header line (first line, BOM and CR stripped, names trimmed).
+std::vector<std::string> HeaderColumns(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  std::getline(in, line);
+  if (line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  while (start <= line.size()) {
+    const std::size_t end = std::min(line.find(',', start), line.size());
+    std::string name = line.substr(start, end - start);
+    const auto first = name.find_first_not_of(" \t\r");
+    const auto last = name.find_last_not_of(" \t\r");
+    out.push_back(first == std::string::npos ? "" : name.substr(first, last - first + 1));
+    start = end + 1;
+  }
+  return out;
+}
+
+std::string JoinColumns(const std::vector<std::string>& columns, std::size_t most = 6) {
+  std::string out;
+  for (std::size_t i = 0; i < columns.size() && i < most; ++i)
+    out += (i == 0 ? "" : ", ") + columns[i];
+  if (columns.size() > most) out += ", ...";
+  return out;
+}
+
+// A catheter trial's CSV has all of the trial format's required columns
+// (docs/trial_format.md).
+bool IsCatheterTrialHeader(const std::vector<std::string>& columns) {
+  for (const char* c : {"t", "base_cmd", "base", "tip", "force"})
+    if (std::find(columns.begin(), columns.end(), c) == columns.end()) return false;
+  return true;
+}
+
+bool IsMotionModelSpec(const std::string& model) { return model.rfind("heartbeat", 0) == 0; }
+
+// The kind of data decides the lab: a folder is a catheter dataset (catheter models:
+// seed[+effect...]); a regular file is a target-motion trace (motion models:
+// heartbeat:N[+...]), unless its columns are a catheter trial's. A model of the other
+// kind, or a single catheter trial, is an error naming the file, its kind and the model.
+// Returns true (and fills `m`) for a motion trace.
 bool IsMotionTrace(const LabFlags& f, MotionLabFlags& m) {
-  if (!std::filesystem::is_regular_file(f.dataset)) return false;
-  m = {f.dataset, f.model, f.column, f.json};
+  if (!std::filesystem::is_regular_file(f.dataset)) {
+    if (IsMotionModelSpec(f.model) && std::filesystem::is_directory(f.dataset)) {
+      throw std::invalid_argument(
+          f.dataset + " is a catheter dataset (a folder of trials); --model '" + f.model +
+          "' is a motion-trace model (for a motion-trace CSV); a catheter model is seed or "
+          "seed+EFFECT (echoservo sim effects lists them)");
+    }
+    return false;
+  }
+  const std::vector<std::string> columns = HeaderColumns(f.dataset);
+  if (IsCatheterTrialHeader(columns)) {
+    std::filesystem::path dir = std::filesystem::path(f.dataset).parent_path();
+    if (dir.empty()) dir = ".";
+    const std::string model = f.model.empty() ? "seed" : f.model;
+    throw std::invalid_argument(
+        f.dataset + " is a catheter trial (columns " + JoinColumns(columns) + "), not a motion " +
+        "trace; " +
+        (IsMotionModelSpec(model)
+             ? "--model '" + model + "' is a motion-trace model and does not apply to it; "
+             : std::string()) +
+        "the catheter lab fits a catheter model to the dataset folder that holds the trials "
+        "(CSV + JSON pairs): echoservo lab compare " +
+        dir.string() + " --model " + (IsMotionModelSpec(model) ? std::string("seed") : model));
+  }
+  if (!f.model.empty() && !IsMotionModelSpec(f.model)) {
+    throw std::invalid_argument(
+        f.dataset + " is a motion trace (columns " + JoinColumns(columns) + "); --model '" +
+        f.model +
+        "' is a catheter model (for a dataset folder of catheter trials); a motion model is "
+        "heartbeat:N[+respiration][+rate_drift][+harmonic][+@term.json] (default heartbeat:2)");
+  }
+  m = {f.dataset, f.model.empty() ? "heartbeat:2" : f.model, f.column, f.json};
   return true;
 }
 
@@ -371,8 +442,9 @@ void AddCommon(CLI::App* cmd, LabFlags& f) {
       ->required();
   cmd->add_option(
       "--model", f.model,
-      "Model SPEC, e.g. seed or seed+capstan_friction; for a motion trace heartbeat:N[+respiration]"
-      "[+rate_drift] (default heartbeat:2)");
+      "Model SPEC: for a dataset folder a catheter model, e.g. seed or seed+capstan_friction "
+      "(default seed); for a motion trace heartbeat:N[+respiration][+rate_drift] (default "
+      "heartbeat:2). A model of the other kind is an error");
   cmd->add_option("--column", f.column,
                   "Motion traces: the position column (default: the first after 't')");
   cmd->add_flag("--skip-bad", f.skip_bad,
@@ -393,6 +465,11 @@ struct LabReportFlags {
 };
 
 void RunLabReport(const LabReportFlags& f) {
+  if (MotionLabFlags m; IsMotionTrace(f.common, m)) {
+    throw std::invalid_argument(f.common.dataset +
+                                " is a motion trace; lab report is for catheter dataset folders "
+                                "only (lab compare|diagnose take a motion trace)");
+  }
   const lab::LabDataset ds = Load(f.common);
   const Model model = ResolveModel(f.common);
   const auto& effects = model.effects;

@@ -12,7 +12,7 @@ namespace echoservo::apps {
 namespace {
 
 lab::MotionModelSpec Spec(const MotionLabFlags& f) {
-  return lab::ParseMotionModel(f.model == "seed" || f.model.empty() ? "heartbeat:2" : f.model);
+  return lab::ParseMotionModel(f.model.empty() ? "heartbeat:2" : f.model);
 }
 
 nlohmann::json Nullable(double v) {

@@ -10,7 +10,7 @@ namespace echoservo::apps {
 
 struct MotionLabFlags {
   std::string trace;
-  std::string model;  // "seed" (the lab's default) means heartbeat:2
+  std::string model;  // a motion model, heartbeat:N[+...]; empty means heartbeat:2
   std::string column;
   bool json = false;
 };

@@ -4,6 +4,8 @@
 #include <atomic>
 #include <csignal>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "link/dds_link.h"
 #include "link/security.h"
@@ -61,6 +63,24 @@ link::ParticipantOptions ToParticipantOptions(const LinkFlags& f, const std::str
         SecureProperties(f.secure_dir, f.secure_identity.empty() ? role : f.secure_identity);
   o.Validate();
   return o;
+}
+
+std::string DescribeLink(const LinkFlags& f) {
+  std::string text = "DDS domain " + std::to_string(f.domain) + " (";
+  auto list = [](const std::vector<std::string>& items) {
+    std::string out;
+    for (const std::string& i : items) out += (out.empty() ? "" : ", ") + i;
+    return out;
+  };
+  if (f.loopback) {
+    text += "UDPv4 on 127.0.0.1 only, --loopback";
+  } else {
+    text += f.no_shm ? "UDPv4 only" : "UDPv4 + shared memory";
+    text += f.interfaces.empty() ? ", all interfaces" : ", interfaces " + list(f.interfaces);
+    text += f.peers.empty() ? ", multicast discovery" : ", unicast peers " + list(f.peers);
+  }
+  if (!f.secure_dir.empty()) text += ", DDS-Security " + f.secure_dir;
+  return text + ")";
 }
 
 void InstallStopSignals() {

@@ -38,6 +38,11 @@ link::ParticipantOptions ToParticipantOptions(const LinkFlags& flags, const std:
 std::vector<std::pair<std::string, std::string>> SecureProperties(const std::string& dir,
                                                                   const std::string& role);
 
+// Where a participant with these flags looks for peers, for "no peer" messages:
+// "DDS domain 0 (UDPv4 + shared memory, multicast discovery)", "DDS domain 61 (UDPv4 on
+// 127.0.0.1 only, --loopback)", with interfaces, peers and --secure when given.
+std::string DescribeLink(const LinkFlags& flags);
+
 // SIGINT/SIGTERM set a flag that a command's loop polls, so it ends cleanly: the servo
 // leaves its loop, prints its summary and its participant leaves the domain.
 void InstallStopSignals();

@@ -4,6 +4,7 @@
 
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "imaging/igtl/image_server.h"
 #include "imaging/igtl/ingest.h"
@@ -45,7 +46,9 @@ nlohmann::json ServerJson(const igtl::ImageServerStats& s, int port) {
           {"messages_written", s.messages_written},
           {"bytes_written", s.bytes_written},
           {"clients_accepted", s.clients_accepted},
-          {"clients_dropped", s.clients_dropped},
+          {"clients_disconnected", s.clients_disconnected},
+          {"clients_stalled", s.clients_stalled},
+          {"frames_unsent", s.frames_unsent},
           {"encode_ms_mean", s.encode_ms_mean}};
 }
 
@@ -73,8 +76,14 @@ int Serve(imaging::VolumeSource& source, igtl::ImageServerOptions options, bool 
   if (json) {
     std::cout << ServerJson(stats, server.port()).dump(2) << "\n";
   } else {
-    std::cout << "sent " << stats.frames_sent << " frames to " << stats.clients_accepted
-              << " client(s), " << stats.clients_dropped << " dropped; encode "
+    auto count = [](std::int64_t n, const char* one, const char* many) {
+      return std::to_string(n) + " " + (n == 1 ? one : many);
+    };
+    std::cout << "sent " << count(stats.frames_sent, "frame", "frames") << " to "
+              << count(stats.clients_accepted, "client", "clients") << "; "
+              << count(stats.clients_disconnected, "client", "clients") << " disconnected, "
+              << count(stats.clients_stalled, "client", "clients") << " cut off for stalling; "
+              << count(stats.frames_unsent, "frame", "frames") << " reached no client; encode "
               << stats.encode_ms_mean << " ms/frame\n";
   }
   return 0;

@@ -1,5 +1,6 @@
 // `echoservo predict TRACE`: the heartbeat EKF against baselines on a motion trace.
 #include <CLI/CLI.hpp>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -52,7 +53,24 @@ nlohmann::json ScoreJson(const estimation::PredictionScore& s) {
   return {{"rms_mm", s.rms_mm}, {"mae_mm", s.mae_mm}, {"max_mm", s.max_mm}};
 }
 
+// The trace must be a readable file: a folder or a missing path is named with why (the
+// CSV reader would only say "read error" for a folder).
+void CheckTraceFile(const std::string& path) {
+  constexpr const char* kExpected =
+      "expected a motion-trace CSV file: a header line with 't' (s) and position columns (mm), "
+      "e.g. t,position,truth,heart_rate_bpm as `echoservo sim motion --out FILE` writes";
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(status))
+    throw std::invalid_argument(path + ": no such file; " + kExpected);
+  if (std::filesystem::is_directory(status))
+    throw std::invalid_argument(path + ": is a directory; " + kExpected);
+  if (!std::filesystem::is_regular_file(status))
+    throw std::invalid_argument(path + ": not a regular file; " + kExpected);
+}
+
 void RunPredict(const PredictFlags& f) {
+  CheckTraceFile(f.trace);
   const estimation::MotionTrace trace = estimation::ReadMotionTrace(f.trace, f.column);
   estimation::MotionTrace truth;
   estimation::PredictionRunOptions o;

@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -31,6 +32,8 @@ struct ReportFlags {
   double offset_center_s = std::numeric_limits<double>::quiet_NaN();
   int phase_bins = 10;
   bool json = false;
+  bool force = false;
+  std::string from_reason = "--from";
 };
 
 constexpr double kRigidTolerance = 1e-3;
@@ -64,8 +67,31 @@ struct Produced {
   hw::EmLog em;
 };
 
+// --out must name a file that can be written; a folder or a failed write is the user's
+// mistake, named as such, and leaves no temporary file behind.
+void CheckOut(const std::string& out) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(out, ec)) {
+    throw std::invalid_argument("--out " + out +
+                                ": is a folder; give the HTML file to write (e.g. " +
+                                (std::filesystem::path(out) / "report.html").string() + ")");
+  }
+}
+
+void WritePage(const std::string& out, const std::string& html) {
+  CheckOut(out);
+  try {
+    WriteFileAtomically(out, html);
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    std::filesystem::remove(out + ".tmp", ec);
+    throw std::invalid_argument("--out " + out + ": cannot write the report (" + e.what() + ")");
+  }
+}
+
 // Reads the run and its EM log, computes the metrics and writes the HTML page.
 Produced Produce(const ReportFlags& f) {
+  CheckOut(f.out);  // before the work
   const hw::RunRecord run = hw::ReadRunRecord(f.run);
   std::string em_path = f.em;
   if (em_path.empty()) {
@@ -85,6 +111,7 @@ Produced Produce(const ReportFlags& f) {
   ao.alignment.offset_center_s = f.offset_center_s;
   if (!f.em_to_image.empty()) {
     ao.alignment.em_to_image = ParseTransform(f.em_to_image);
+    ao.transform_source = "--em-to-image";
   } else {
     // A run may carry its EM→image calibration (run.json "em_to_image": 12 or 16 numbers,
     // row-major, mm), measured before the run: a catheter moving along its axis cannot
@@ -95,16 +122,21 @@ Produced Produce(const ReportFlags& f) {
         throw std::invalid_argument(
             f.run + "/run.json: key 'em_to_image' must be a string of 12 or 16 numbers");
       ao.alignment.em_to_image = ParseTransform(meta["em_to_image"].get<std::string>());
+      ao.transform_source = "run.json";
     }
   }
   ao.phase_bins = f.phase_bins;
-  if (f.from_s) ao.from_s = *f.from_s;
+  if (f.from_s) {
+    ao.from_s = *f.from_s;
+    ao.from_reason = f.from_reason;
+  }
+  ao.force = f.force;
   const report::AccuracyMetrics m = report::ComputeAccuracy(run, em, ao);
 
   report::AccuracyReportOptions ro;
   ro.run_path = f.run;
   ro.em_path = em_path;
-  WriteFileAtomically(f.out, report::RenderAccuracyReport(run, m, ro));
+  WritePage(f.out, report::RenderAccuracyReport(run, m, ro));
   return {m, ro, em};
 }
 
@@ -113,10 +145,15 @@ void RunReport(const ReportFlags& f) {
   const report::AccuracyMetrics& m = p.metrics;
   const report::AccuracyReportOptions& ro = p.options;
   const hw::EmLog& em = p.em;
+  for (const std::string& w : m.warnings)
+    std::cerr << "WARNING (--force): the EM log failed a plausibility check: " << w << "\n";
   if (f.json) {
     std::cout << report::AccuracyJson(m, ro) << "\n";
     return;
   }
+  if (m.forced)
+    std::cout << "WARNING: figures forced (--force) although the EM log failed the "
+                 "plausibility checks; they may not measure this run\n";
   std::cout << "wrote " << f.out << "\n"
             << "tip-to-target RMS " << Fixed(m.rms_mm, 3) << " mm over " << m.error_mm.size()
             << " EM samples against " << m.target_source << " (seed "
@@ -124,7 +161,8 @@ void RunReport(const ReportFlags& f) {
             << "EM: " << em.samples.size() << " samples, " << em.dropouts()
             << " drop-outs; clock offset " << Fixed(m.alignment.em_time_offset_s, 4)
             << " s, registration RMS " << Fixed(m.alignment.residual_rms_mm, 3) << " mm over "
-            << m.alignment.pairs << " pairs\n";
+            << m.alignment.pairs << " pairs; EM→image transform " << m.transform_source << "\n"
+            << "scored window: " << report::WindowText(m) << "\n";
   if (m.latency.count > 0) {
     std::cout << "latency p50/p95/p99/max " << Fixed(m.latency.p50_ms, 1) << "/"
               << Fixed(m.latency.p95_ms, 1) << "/" << Fixed(m.latency.p99_ms, 1) << "/"
@@ -141,6 +179,7 @@ double WriteRunReport(const std::string& run_dir, const std::string& html_path, 
   f.run = run_dir;
   f.out = html_path;
   f.from_s = from_s;
+  f.from_reason = "demo --metrics-start";
   return Produce(f).metrics.rms_mm;
 }
 
@@ -166,13 +205,17 @@ void AddReportCommand(CLI::App& app) {
   cmd->add_option("--offset-center", f->offset_center_s,
                   "Centre of the offset search, s (default: first volume time − first EM time)");
   cmd->add_option("--from", f->from_s,
-                  "Figures from this pipeline time on, s (the alignment uses the whole run)")
+                  "Figures from this pipeline time on, s (the alignment uses the whole run; "
+                  "default: when the servo began following, from servo.csv)")
       ->check(CLI::Range(-1e9, 1e9));
   cmd->add_option("--em-to-image", f->em_to_image,
                   "Known EM→image transform, 12 or 16 comma-separated numbers, row-major, mm: "
                   "only the clock offset is estimated");
   cmd->add_option("--phase-bins", f->phase_bins, "Heartbeat phase bins (default 10)");
   cmd->add_flag("--json", f->json, "Print the figures as JSON");
+  cmd->add_flag("--force", f->force,
+                "Give the figures even when the EM log fails the plausibility checks "
+                "(marked with a warning in the page and the JSON)");
   cmd->callback([f] { RunReport(*f); });
 }
 

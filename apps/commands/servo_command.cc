@@ -5,7 +5,9 @@
 // JSON summary: cycles, overruns, estimates accepted/rejected (by reason at the link),
 // commands, states published, fault events, limit_violations (must be 0), the mode
 // timeline, time to the safe state after the tracker went away, and the tip's RMS error
-// to its setpoint while following.
+// to its setpoint while following; limit_interventions (cycles a limit intervened), the time
+// at a travel clamp, and the image response check: when it faulted after following began,
+// how soon the servo held and retracted, and the time at a clamp after it.
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
@@ -76,6 +78,14 @@ void RunServo(const ServoArgs& a) {
   double err_sq = 0.0;
   std::uint64_t err_n = 0;
   double following_since = -1.0;  // < 0: not following
+  // The image response check (docs/control.md): from the first following to its fault, after.
+  double following_started_s = -1.0;
+  std::optional<double> image_fault_s, image_fault_after_following_s, image_hold_s, image_retract_s;
+  double clamp_after_image_fault_s = 0.0;
+  // No tracker matched on the target topic: said after 2 s, then every 5 s until one is.
+  constexpr double kNoPeerReportS = 5.0;
+  double next_no_peer_report_s = 2.0;
+  bool peer_reported_missing = false, peer_seen = false;
   node.Start(0.0);
   std::uint64_t k = 0;
   for (;; ++k) {
@@ -84,11 +94,36 @@ void RunServo(const ServoArgs& a) {
     std::this_thread::sleep_until(clock.At(t));
     if (clock.Now() > t + period) ++overruns;
     const live::ServoCycle c = node.Cycle(t, k);
+    if (!peer_seen && k % 100 == 0) {  // 10 Hz: where the servo looks, while nothing is there
+      if (node.target_link_stats().matched_publishers > 0) {
+        peer_seen = true;
+        if (peer_reported_missing)
+          std::fprintf(stderr, "servo: tracker found on %s after %.1f s\n",
+                       DescribeLink(a.link).c_str(), t);
+      } else if (t >= next_no_peer_report_s) {
+        peer_reported_missing = true;
+        std::fprintf(stderr, "servo: no tracker on %s, topic %s, after %.0f s; still waiting\n",
+                     DescribeLink(a.link).c_str(), std::string(link::kTargetTopic).c_str(), t);
+        next_no_peer_report_s += kNoPeerReportS;
+      }
+    }
     if (c.mode != mode || k == 0) {
       mode = c.mode;
       timeline.push_back({{"t_s", t}, {"mode", std::string(link::ToString(mode))}});
       if (!a.json)
         std::fprintf(stderr, "servo: t %.3f s: %s\n", t, std::string(link::ToString(mode)).c_str());
+    }
+    if (c.mode == link::ServoMode::kTracking && following_started_s < 0) following_started_s = t;
+    if ((c.faults & link::fault::kImageNotResponding) && !image_fault_s) {
+      image_fault_s = t;
+      if (following_started_s >= 0) image_fault_after_following_s = t - following_started_s;
+    }
+    if (image_fault_s) {
+      if (!image_hold_s && c.mode != link::ServoMode::kTracking) image_hold_s = t;
+      if (!image_retract_s &&
+          (c.mode == link::ServoMode::kRetracting || c.mode == link::ServoMode::kStopped))
+        image_retract_s = t;
+      if (c.clamped) clamp_after_image_fault_s += period;
     }
     if (node.tracker_gone() && !tracker_lost_s) tracker_lost_s = t;
     if (tracker_lost_s && !safe_s &&
@@ -119,6 +154,19 @@ void RunServo(const ServoArgs& a) {
       {"fault_events", s.fault_events},
       {"limit_violations", s.limit_violations},
       {"limit_interventions", s.limit_interventions},
+      {"time_at_clamp_s", s.time_at_clamp_s},
+      {"image_not_responding", s.image_not_responding},
+      {"image_fault_s", image_fault_s ? nlohmann::json(*image_fault_s) : nlohmann::json(nullptr)},
+      {"image_fault_after_following_s", image_fault_after_following_s
+                                            ? nlohmann::json(*image_fault_after_following_s)
+                                            : nlohmann::json(nullptr)},
+      {"image_fault_hold_after_s",
+       image_hold_s ? nlohmann::json(*image_hold_s - *image_fault_s) : nlohmann::json(nullptr)},
+      {"image_fault_retract_after_s", image_retract_s
+                                          ? nlohmann::json(*image_retract_s - *image_fault_s)
+                                          : nlohmann::json(nullptr)},
+      {"time_at_clamp_after_image_fault_s",
+       image_fault_s ? nlohmann::json(clamp_after_image_fault_s) : nlohmann::json(nullptr)},
       {"resumes", s.resumes},
       {"final_mode", std::string(link::ToString(mode))},
       {"timeline", timeline},

@@ -13,7 +13,11 @@
 //                        targets a report scores against the recorded run's EM log.
 // --out RUN writes targets.csv (and run.json; for a replay of RUN/volumes.igs.mhd the
 // recorded run's heart rate, standoff and EM calibration are carried over); with
-// --save-volumes (live sources) also the received volumes, as they come (RUN/volumes.igs.mhd).
+// --save-volumes (live sources) also the received volumes, on a recorder thread through a
+// bounded queue (RUN/volumes.igs.mhd; imaging/io/async_sequence_writer.h).
+// --connect reports every failed attempt and lost connection on stderr (address, errno
+// text), retries with back-off (0.25 s doubling to 4 s), gives up when no volume came
+// within --connect-timeout S, and exits with status 1 when it never received a volume.
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
@@ -26,10 +30,12 @@
 
 #include "apps/commands/link_flags.h"
 #include "apps/commands/live_commands.h"
+#include "hw/io/durable_file.h"
+#include "hw/io/run_dir_guard.h"
 #include "hw/io/run_record.h"
 #include "imaging/igtl/ingest.h"
+#include "imaging/io/async_sequence_writer.h"
 #include "imaging/io/recording.h"
-#include "imaging/io/sequence_writer.h"
 #include "link/clock.h"
 #include "live/delayed_scanner.h"
 #include "live/pipeline_clock.h"
@@ -39,7 +45,30 @@
 namespace echoservo::apps {
 namespace {
 
+// The heartbeat significance test at the end of the run (live/tracker_node.h): whether the
+// EKF's heartbeat was being published, and why (not); rate null without one.
+nlohmann::json HeartbeatJson(const live::TrackerNode& node) {
+  const estimation::HeartbeatEvidence& e = node.heartbeat();
+  return {{"significant", e.significant},
+          {"reason", e.reason},
+          {"rate_hz", e.significant ? nlohmann::json(e.rate_hz) : nlohmann::json(nullptr)},
+          {"confidence", e.confidence()},
+          {"peak_snr", e.peak_snr},
+          {"snr_threshold", e.snr_threshold},
+          {"repeat_snr", e.repeat_snr},
+          {"p2p_mm", e.p2p_mm},
+          {"noise_mm", e.noise_mm},
+          {"published_heartbeat", node.stats().published_heartbeat},
+          {"published_hold", node.stats().published_hold}};
+}
+
 namespace fs = std::filesystem;
+
+// --connect: the wait before reconnecting, doubling after each failed attempt.
+constexpr double kReconnectInitialS = 0.25;
+constexpr double kReconnectMaxS = 4.0;
+// --save-volumes: volumes waiting for the disk before one is dropped (4.9 MB each).
+constexpr std::size_t kRecordQueueVolumes = 16;
 
 struct TrackArgs {
   LinkFlags link;
@@ -47,9 +76,11 @@ struct TrackArgs {
   std::string connect;
   std::string replay;
   double duration_s = 0.0;
+  double connect_timeout_s = 10.0;  // --connect: give up when no volume came by then (0: never)
   std::string out;
   bool save_volumes = false;
   bool json = false;
+  bool follow_static_target = false;  // TrackerNodeOptions::follow_static_target
   // EKF
   int harmonics = 8;
   int max_harmonics = 8;
@@ -93,6 +124,9 @@ void RunTrack(const TrackArgs& a) {
   to.ekf.harmonics = a.harmonics;
   to.ekf.max_harmonics = a.max_harmonics;
   to.ekf.init_window_s = a.init_window_s;
+  to.follow_static_target = a.follow_static_target;
+  // A run that fails leaves no half-written RUN behind, so the same command can be retried.
+  hw::RunDirGuard run_guard(a.out);
   std::unique_ptr<hw::RunWriter> writer;
   if (!a.out.empty()) {
     hw::RunInfo info;
@@ -106,9 +140,14 @@ void RunTrack(const TrackArgs& a) {
     }
     writer = std::make_unique<hw::RunWriter>(a.out, info);
   }
-  std::unique_ptr<imaging::SequenceWriter> recorder;
+  // The received volumes, on the recorder's thread: the tracker never waits for the disk.
+  std::unique_ptr<imaging::AsyncSequenceWriter> recorder;
   if (a.save_volumes)
-    recorder = std::make_unique<imaging::SequenceWriter>(fs::path(a.out) / "volumes.igs.mhd");
+    recorder = std::make_unique<imaging::AsyncSequenceWriter>(fs::path(a.out) / "volumes.igs.mhd",
+                                                              kRecordQueueVolumes);
+  auto record = [&recorder](imaging::Volume&& v) {
+    if (recorder) recorder->Submit(std::move(v));
+  };
   std::unique_ptr<link::Participant> participant;
   std::unique_ptr<link::TargetPublisher> publisher;
   if (!replay) {
@@ -123,6 +162,7 @@ void RunTrack(const TrackArgs& a) {
   std::uint64_t missed = 0, dropped = 0;
   nlohmann::json ingest = nullptr;  // --connect: the OpenIGTLink client's counts
   std::optional<live::TrackerNode> node;
+  std::string failure;  // --connect without a single volume: the exit status is 1
 
   if (replay) {
     node.emplace(to, nullptr, writer.get());
@@ -144,7 +184,7 @@ void RunTrack(const TrackArgs& a) {
   } else if (a.sim) {
     const live::PipelineClock clock(0.2);
     to.link_offset_s = clock.link_offset_s();
-    node.emplace(to, publisher.get(), writer.get(), recorder.get());
+    node.emplace(to, publisher.get(), writer.get());
     live::SimScene scene({a.rate_hz, a.heart_rate_bpm, a.target_p2p_mm, 8.0, a.seed});
     // The servo's tip moves the catheter in the scene.
     const double offset = clock.link_offset_s();
@@ -163,12 +203,13 @@ void RunTrack(const TrackArgs& a) {
       const double arrived = clock.Now();
       report_error(
           node->Process(d->volume, d->acquired_s, arrived, [&clock] { return clock.Now(); }));
+      record(std::move(d->volume));
     }
     scanner.Stop();
     missed = scanner.missed();
     dropped = scanner.dropped();
   } else {
-    node.emplace(to, publisher.get(), writer.get(), recorder.get());
+    node.emplace(to, publisher.get(), writer.get());
     const auto colon = a.connect.rfind(':');
     if (colon == std::string::npos)
       throw std::invalid_argument("track --connect: expected HOST:PORT, got '" + a.connect + "'");
@@ -180,16 +221,48 @@ void RunTrack(const TrackArgs& a) {
       throw std::invalid_argument("track --connect: bad port in '" + a.connect + "'");
     }
     io.queue_capacity = 2;
+    io.reconnect_initial_s = kReconnectInitialS;
+    io.reconnect_max_s = kReconnectMaxS;
+    const std::string where = "track --connect " + a.connect;
+    io.on_event = [where](const imaging::openigtlink::ConnectionEvent& e) {
+      using Kind = imaging::openigtlink::ConnectionEvent::Kind;
+      switch (e.kind) {
+        case Kind::kConnectFailed:
+          std::fprintf(stderr, "%s: %s; retrying in %.2g s (attempt %d)\n", where.c_str(),
+                       e.error.c_str(), e.retry_in_s, e.attempt + 1);
+          break;
+        case Kind::kConnected:
+          std::fprintf(stderr, "%s: connected (attempt %d)\n", where.c_str(), e.attempt);
+          break;
+        case Kind::kDisconnected:
+          std::fprintf(stderr,
+                       "%s: the scanner's connection ended after %lld volume(s): %s; "
+                       "reconnecting in %.2g s\n",
+                       where.c_str(), static_cast<long long>(e.frames), e.error.c_str(),
+                       e.retry_in_s);
+          break;
+        case Kind::kGaveUp:
+          break;
+      }
+    };
     imaging::openigtlink::IngestClient client(io);
     client.Start();
     const double start = link::NowS();
+    std::uint64_t received = 0;
+    bool gave_up = false;
     while (!StopRequested() && (a.duration_s <= 0 || link::NowS() - start < a.duration_s) &&
            !client.ended()) {
+      if (received == 0 && a.connect_timeout_s > 0 && link::NowS() - start >= a.connect_timeout_s) {
+        gave_up = true;
+        break;
+      }
       std::optional<imaging::openigtlink::IngestedFrame> f = client.NextFrame(0.1);
       if (!f) continue;
+      ++received;
       const double acquired = f->latency_ms ? f->frame.volume.timestamp_s() : f->arrival_s;
       report_error(
           node->Process(f->frame.volume, acquired, f->arrival_s, [] { return link::NowS(); }));
+      record(std::move(f->frame.volume));
     }
     client.Stop();
     const imaging::openigtlink::IngestStats is = client.stats();
@@ -197,14 +270,45 @@ void RunTrack(const TrackArgs& a) {
     ingest = {{"frames", is.frames},
               {"connections", is.connections},
               {"connect_failures", is.connect_failures},
+              {"last_connect_error", is.last_connect_error},
               {"rejected", is.rejected},
               {"rejected_by_reason", is.rejected_by_reason}};
     for (const auto& [reason, n] : is.rejected_by_reason)
       std::fprintf(stderr, "track: ingest rejected %lld message(s): %s\n",
                    static_cast<long long>(n), reason.c_str());
+    if (received == 0) {
+      char when[96];
+      if (gave_up)
+        std::snprintf(when, sizeof when, "within --connect-timeout %g s", a.connect_timeout_s);
+      else if (StopRequested())
+        std::snprintf(when, sizeof when, "before it was stopped");
+      else
+        std::snprintf(when, sizeof when, "in --duration %g s", a.duration_s);
+      std::string why;
+      if (is.connections == 0)
+        why = std::to_string(is.connect_failures) + " connection attempt(s), the last: " +
+              (is.last_connect_error.empty() ? "no answer" : is.last_connect_error);
+      else
+        why = "connected " + std::to_string(is.connections) +
+              " time(s), but no IMAGE message was accepted (" + std::to_string(is.rejected) +
+              " rejected, " + std::to_string(is.skipped) + " of other types)";
+      failure = where + ": no volume received " + when + " (" + why + ")" +
+                (gave_up ? "; giving up" : "");
+    }
   }
   if (writer) writer->Flush();
-  if (recorder) recorder->SyncData();
+  imaging::AsyncRecorderStats rs;
+  if (recorder) {  // what is queued is written, then synced
+    recorder->Close();
+    rs = recorder->stats();
+    hw::ReplaceFileContents(fs::path(a.out) / "volumes.json", recorder->SummaryJson());
+    if (!rs.error.empty())
+      std::fprintf(stderr, "track: volume recording stopped: %s\n", rs.error.c_str());
+    if (rs.dropped > 0)
+      std::fprintf(stderr, "track: volume recording: %llu of %llu volumes dropped (queue full)\n",
+                   static_cast<unsigned long long>(rs.dropped),
+                   static_cast<unsigned long long>(rs.submitted));
+  }
 
   const live::TrackerStats& s = node->stats();
   if (a.json) {
@@ -214,12 +318,14 @@ void RunTrack(const TrackArgs& a) {
                                 {"errors", s.errors},
                                 {"published", s.published},
                                 {"publish_failures", s.publish_failures},
-                                {"volumes_recorded", s.recorded},
+                                {"volumes_recorded", rs.written},
+                                {"volumes_record_dropped", rs.dropped},
                                 {"dropped", dropped},
                                 {"missed_acquisitions", missed},
                                 {"ingest", ingest},
                                 {"ekf_harmonics", node->ekf().harmonics()},
                                 {"ekf_rate_hz", node->ekf().rate_hz()},
+                                {"heartbeat", HeartbeatJson(*node)},
                                 {"run_dir",
                                  a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}}
                      .dump(2)
@@ -231,7 +337,10 @@ void RunTrack(const TrackArgs& a) {
         static_cast<unsigned long long>(s.volumes), static_cast<unsigned long long>(s.measured),
         static_cast<unsigned long long>(s.published), static_cast<unsigned long long>(s.errors),
         node->ekf().harmonics(), node->ekf().rate_hz());
+    std::printf("track: %s\n", node->heartbeat().reason.c_str());
   }
+  if (!failure.empty()) throw std::runtime_error(failure);
+  run_guard.Keep();
 }
 
 }  // namespace
@@ -247,15 +356,21 @@ void AddTrackCommand(CLI::App& app) {
                   "a recording (PLUS sequence, volume file or folder), processed offline");
   cmd->add_option("--duration", a->duration_s, "run length, s (0: until the stream ends or SIGINT)")
       ->check(CLI::Range(0.0, 86400.0));
+  cmd->add_option("--connect-timeout", a->connect_timeout_s,
+                  "--connect: give up (exit status 1) when no volume arrived within S s; 0: "
+                  "keep trying")
+      ->check(CLI::Range(0.0, 86400.0));
   cmd->add_option("--out", a->out, "write a RUN directory (targets.csv, run.json)");
   cmd->add_flag("--save-volumes", a->save_volumes,
                 "--sim/--connect: also record the received volumes to RUN/volumes.igs.mhd (+ "
-                ".raw), each as it is "
-                "processed, for --replay");
+                ".raw) on a recorder thread (a full queue drops, counted), for --replay");
   cmd->add_option("--harmonics", a->harmonics, "EKF harmonics (0: automatic)")
       ->check(CLI::Range(0, 12));
   cmd->add_option("--max-harmonics", a->max_harmonics, "EKF automatic harmonics up to")
       ->check(CLI::Range(1, 12));
+  cmd->add_flag("--follow-static-target", a->follow_static_target,
+                "without a significant heartbeat, publish the hold at the detector's confidence "
+                "(a static phantom the servo should follow) instead of at confidence 0");
   cmd->add_option("--init-window", a->init_window_s, "EKF initial window, s")
       ->check(CLI::Range(1.0, 30.0));
   cmd->add_option("--rate", a->rate_hz, "--sim: volume rate, vol/s")->check(CLI::Range(1.0, 60.0));

@@ -116,12 +116,14 @@ void ImageServer::StreamLoop() {
       for (auto& c : clients_) targets.push_back(c.get());
     }
     std::vector<Client*> failed;
-    std::int64_t written = 0;
+    std::int64_t written = 0, stalled = 0;
     for (Client* c : targets) {
-      if (tcp::WriteAll(c->fd.get(), buffer.data(), buffer.size(), options_.send_timeout_ms) ==
-          tcp::IoResult::kOk) {
+      const tcp::IoResult result =
+          tcp::WriteAll(c->fd.get(), buffer.data(), buffer.size(), options_.send_timeout_ms);
+      if (result == tcp::IoResult::kOk) {
         ++written;
       } else {
+        if (result == tcp::IoResult::kTimeout) ++stalled;
         failed.push_back(c);
       }
     }
@@ -130,10 +132,11 @@ void ImageServer::StreamLoop() {
     stats_.messages_written += written;
     stats_.bytes_written += written * static_cast<std::int64_t>(buffer.size());
     stats_.encode_ms_mean = encode_ms_total / static_cast<double>(frames);
-    for (Client* f : failed) {
+    if (written == 0) ++stats_.frames_unsent;
+    for (Client* f : failed)
       std::erase_if(clients_, [f](const std::unique_ptr<Client>& c) { return c.get() == f; });
-      ++stats_.clients_dropped;
-    }
+    stats_.clients_stalled += stalled;
+    stats_.clients_disconnected += static_cast<std::int64_t>(failed.size()) - stalled;
     stats_.clients_now = static_cast<int>(clients_.size());
   }
   {

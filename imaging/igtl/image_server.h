@@ -1,8 +1,9 @@
 // OpenIGTLink scanner server: serves the frames of any imaging::VolumeSource as IMAGE
 // messages over TCP to every connected client (one or more), paced at the source's
 // nominal rate, a given rate, or as fast as possible. Each frame is encoded once (see
-// image_message.h for the wire mapping) and written to all clients; a client that closes,
-// errors or stalls longer than send_timeout_ms is dropped and counted, the others go on.
+// image_message.h for the wire mapping) and written to all clients; a client that closes or
+// errors (disconnected) or stalls longer than send_timeout_ms (cut off) is removed and
+// counted, the others go on.
 // New clients may connect at any time and get frames from the next one on.
 //
 // Threads: Start() launches an accept thread and a streaming thread; the source is only
@@ -48,7 +49,14 @@ struct ImageServerStats {
   std::int64_t messages_written = 0;  // frames × clients that got them whole
   std::int64_t bytes_written = 0;
   std::int64_t clients_accepted = 0;
-  std::int64_t clients_dropped = 0;  // closed, failed or stalled
+  // Clients that left: the peer closed the connection or a write failed (a client that
+  // exits or disconnects mid-stream). Not frames lost: see frames_unsent.
+  std::int64_t clients_disconnected = 0;
+  // Clients cut off by the server because they accepted no byte for send_timeout_ms.
+  std::int64_t clients_stalled = 0;
+  // Frames pulled from the source that no client received whole (none connected, or every
+  // write failed): the frames the stream dropped.
+  std::int64_t frames_unsent = 0;
   int clients_now = 0;
   double encode_ms_mean = 0;  // encode + CRC per frame
 };

@@ -138,20 +138,45 @@ void IngestClient::Run() {
     std::unique_lock lock(mutex_);
     cv_.wait_for(lock, std::chrono::duration<double>(s), [this] { return stop_.load(); });
   };
+  auto report = [this](ConnectionEvent e) {
+    if (!options_.on_event) return;
+    {
+      std::lock_guard lock(mutex_);
+      e.frames = stats_.frames;
+    }
+    options_.on_event(e);
+  };
   while (!stop_) {
     std::string error;
-    tcp::Fd fd = tcp::Connect(options_.host, options_.port, options_.connect_timeout_ms, error);
+    int error_number = 0;
+    tcp::Fd fd = tcp::Connect(options_.host, options_.port, options_.connect_timeout_ms, error,
+                              error_number);
     if (!fd.valid()) {
+      if (stop_) break;
       ++failures;
       {
         std::lock_guard lock(mutex_);
         ++stats_.connect_failures;
+        stats_.last_connect_error = error;
       }
-      if (options_.max_connect_failures >= 0 && failures > options_.max_connect_failures) break;
+      const bool give_up =
+          options_.max_connect_failures >= 0 && failures > options_.max_connect_failures;
+      ConnectionEvent e;
+      e.kind = ConnectionEvent::Kind::kConnectFailed;
+      e.attempt = failures;
+      e.error = error;
+      e.error_number = error_number;
+      e.retry_in_s = give_up ? 0.0 : backoff;
+      report(e);
+      if (give_up) {
+        report({ConnectionEvent::Kind::kGaveUp, failures, error, error_number, 0.0, 0});
+        break;
+      }
       wait(backoff);
       backoff = std::min(2 * backoff, options_.reconnect_max_s);
       continue;
     }
+    report({ConnectionEvent::Kind::kConnected, failures + 1, "", 0, 0.0, 0});
     failures = 0;
     std::int64_t frames_before;
     {
@@ -159,13 +184,14 @@ void IngestClient::Run() {
       ++stats_.connections;
       frames_before = stats_.frames + stats_.skipped;
     }
-    Session(fd.get());
+    const std::string why = Session(fd.get());
     fd.reset();
     {
       std::lock_guard lock(mutex_);
       if (stats_.frames + stats_.skipped > frames_before) backoff = options_.reconnect_initial_s;
     }
     if (stop_) break;
+    report({ConnectionEvent::Kind::kDisconnected, 0, why, 0, backoff, 0});
     wait(backoff);
     backoff = std::min(2 * backoff, options_.reconnect_max_s);
   }
@@ -173,7 +199,7 @@ void IngestClient::Run() {
   cv_.notify_all();
 }
 
-void IngestClient::Session(int fd) {
+std::string IngestClient::Session(int fd) {
   // Reads n bytes, polling so that Stop() is honoured; `started` says a message is
   // already under way (so a close is a truncation and silence a stall).
   auto read = [&](std::uint8_t* p, std::size_t n, bool started) {
@@ -199,19 +225,27 @@ void IngestClient::Session(int fd) {
     stats_.bytes += static_cast<std::int64_t>(n);
     return ReadStatus::kOk;
   };
+  std::string why = "stopped";  // why the session ended
   // Maps a failed read to its rejection; true when the session must end.
   auto failed = [&](ReadStatus s) {
     switch (s) {
       case ReadStatus::kOk:
         return false;
+      case ReadStatus::kClosedClean:
+        why = "closed by the server";
+        break;
       case ReadStatus::kTruncated:
         Reject("truncated_message");
+        why = "closed by the server in the middle of a message";
         break;
       case ReadStatus::kStalled:
         Reject("stalled");
+        why = "no data for " + std::to_string(options_.stall_timeout_ms) +
+              " ms in the middle of a message";
         break;
       case ReadStatus::kError:
         Reject("socket_error");
+        why = "socket error";
         break;
       default:
         break;
@@ -235,18 +269,19 @@ void IngestClient::Session(int fd) {
   const DecodeLimits& limits = options_.limits;
   while (!stop_) {
     std::uint8_t header_bytes[kHeaderBytes];
-    if (failed(read(header_bytes, kHeaderBytes, false))) return;
+    if (failed(read(header_bytes, kHeaderBytes, false))) return why;
     const auto t_header = Steady::now();
     MessageHeader header;
     try {
       header = ParseHeader(header_bytes, limits);
     } catch (const MessageError& e) {
       Reject(e.reason());  // framing can no longer be trusted: reconnect
-      return;
+      why = std::string("bad message header (") + e.reason() + ")";
+      return why;
     }
     if (header.type != "IMAGE") {
       std::uint64_t crc = 0;
-      if (failed(discard(header.body_size, &crc))) return;
+      if (failed(discard(header.body_size, &crc))) return why;
       if (limits.verify_crc && crc != header.crc) {
         Reject("bad_crc");
       } else {
@@ -259,18 +294,18 @@ void IngestClient::Session(int fd) {
     std::uint8_t image_bytes[kImageHeaderBytes];
     const auto image_size =
         static_cast<std::size_t>(std::min<std::uint64_t>(header.body_size, kImageHeaderBytes));
-    if (failed(read(image_bytes, image_size, true))) return;
+    if (failed(read(image_bytes, image_size, true))) return why;
     ImageHeader image;
     try {
       image = ParseImageHeader(header, {image_bytes, image_size}, limits);
     } catch (const MessageError& e) {
       // The header's body_size is within limits, so the stream stays in step: skip it.
-      if (failed(discard(header.body_size - image_size, nullptr))) return;
+      if (failed(discard(header.body_size - image_size, nullptr))) return why;
       Reject(e.reason());
       continue;
     }
     Volume volume = MakeVolume(header, image);
-    if (failed(read(volume.voxels().data(), image.voxel_bytes, true))) return;
+    if (failed(read(volume.voxels().data(), image.voxel_bytes, true))) return why;
     if (limits.verify_crc) {
       std::uint64_t crc = Crc64Ecma182({image_bytes, kImageHeaderBytes});
       crc = Crc64Ecma182(volume.voxels(), crc);
@@ -290,6 +325,7 @@ void IngestClient::Session(int fd) {
     if (shared) f.latency_ms = latency_s * 1e3;
     Accept(std::move(f));
   }
+  return why;
 }
 
 }  // namespace echoservo::imaging::openigtlink

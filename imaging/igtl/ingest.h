@@ -14,6 +14,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -25,6 +26,22 @@
 #include "imaging/volume_source.h"
 
 namespace echoservo::imaging::openigtlink {
+
+// What the receive thread reports as the connection comes and goes (IngestOptions::on_event).
+struct ConnectionEvent {
+  enum class Kind {
+    kConnectFailed,  // attempt `attempt` failed: `error` (errno `error_number`)
+    kConnected,      // attempt `attempt` connected
+    kDisconnected,   // the connection ended: `error` says why
+    kGaveUp,         // max_connect_failures reached: no more attempts
+  };
+  Kind kind = Kind::kConnectFailed;
+  int attempt = 0;          // connect attempts since the last connection, from 1
+  std::string error;        // "connection refused (ECONNREFUSED)", "closed by the server", ...
+  int error_number = 0;     // errno of a failed connect (0 when it has none)
+  double retry_in_s = 0;    // kConnectFailed, kDisconnected: wait before the next attempt
+  std::int64_t frames = 0;  // accepted IMAGE frames so far
+};
 
 struct IngestOptions {
   std::string host = "127.0.0.1";
@@ -39,6 +56,8 @@ struct IngestOptions {
   enum class Clock { kAuto, kShared, kSeparate };
   Clock clock = Clock::kAuto;
   std::size_t max_samples = 1 << 20;  // latency samples kept
+  // Called on the receive thread for each connection event (keep it short); may be empty.
+  std::function<void(const ConnectionEvent&)> on_event;
 };
 
 struct LatencySummary {
@@ -56,6 +75,7 @@ struct IngestStats {
   std::int64_t delivered = 0;    // handed to the consumer
   std::int64_t connections = 0;  // successful connects
   std::int64_t connect_failures = 0;
+  std::string last_connect_error;  // the newest failed connect's error (ConnectionEvent::error)
   std::int64_t bytes = 0;
   LatencySummary latency;  // arrival − message timestamp (shared clock only)
   LatencySummary receive;  // per-frame receive time
@@ -93,7 +113,7 @@ class IngestClient : public VolumeSource {
 
  private:
   void Run();
-  void Session(int fd);
+  std::string Session(int fd);  // returns why the session ended
   void Reject(const std::string& reason);
   void Accept(IngestedFrame frame);
 

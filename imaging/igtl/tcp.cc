@@ -77,7 +77,26 @@ Fd Accept(const Fd& listener, int timeout_ms) {
   return Fd(::accept4(listener.get(), nullptr, nullptr, SOCK_CLOEXEC));
 }
 
+std::string DescribeErrno(int error_number) {
+  std::string text = std::strerror(error_number);
+  if (!text.empty() && text[0] >= 'A' && text[0] <= 'Z' &&
+      (text.size() < 2 || !(text[1] >= 'A' && text[1] <= 'Z')))
+    text[0] = static_cast<char>(text[0] - 'A' + 'a');  // "Connection refused", not "I/O error"
+  const char* name = ::strerrorname_np(error_number);
+  return name ? text + " (" + name + ")" : text;
+}
+
 Fd Connect(const std::string& host, int port, int timeout_ms, std::string& error) {
+  int error_number = 0;
+  Fd fd = Connect(host, port, timeout_ms, error, error_number);
+  if (!fd.valid() && error_number != 0)
+    error = "connect " + host + ":" + std::to_string(port) + ": " + error;
+  return fd;
+}
+
+Fd Connect(const std::string& host, int port, int timeout_ms, std::string& error,
+           int& error_number) {
+  error_number = 0;
   addrinfo hints{};
   hints.ai_family = AF_INET;
   hints.ai_socktype = SOCK_STREAM;
@@ -89,25 +108,29 @@ Fd Connect(const std::string& host, int port, int timeout_ms, std::string& error
   }
   Fd fd(::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0));
   int result = fd.valid() ? ::connect(fd.get(), res->ai_addr, res->ai_addrlen) : -1;
+  int err = errno;
   ::freeaddrinfo(res);
   if (!fd.valid()) {
-    error = std::string("socket: ") + std::strerror(errno);
+    error_number = err;
+    error = "socket: " + DescribeErrno(err);
     return Fd();
   }
-  if (result != 0 && errno == EINPROGRESS) {
+  if (result != 0 && err == EINPROGRESS) {
     pollfd p{fd.get(), POLLOUT, 0};
     if (::poll(&p, 1, timeout_ms) <= 0) {
-      error = "connect timeout";
+      error_number = ETIMEDOUT;
+      error = "no answer within " + std::to_string(timeout_ms) + " ms (ETIMEDOUT)";
       return Fd();
     }
     int soerr = 0;
     socklen_t len = sizeof soerr;
     ::getsockopt(fd.get(), SOL_SOCKET, SO_ERROR, &soerr, &len);
     result = soerr == 0 ? 0 : -1;
-    errno = soerr;
+    err = soerr;
   }
   if (result != 0) {
-    error = "connect " + host + ":" + std::to_string(port) + ": " + std::strerror(errno);
+    error_number = err;
+    error = DescribeErrno(err);
     return Fd();
   }
   const int flags = ::fcntl(fd.get(), F_GETFL);

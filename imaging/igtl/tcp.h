@@ -42,6 +42,13 @@ Fd Listen(const std::string& bind_address, int port, int& bound_port);
 Fd Accept(const Fd& listener, int timeout_ms);
 // Connects within timeout_ms; invalid Fd on failure (error text in `error`).
 Fd Connect(const std::string& host, int port, int timeout_ms, std::string& error);
+// The same; `error_number` gets the failure's errno (ETIMEDOUT past timeout_ms; 0 for a
+// failure without one, such as a host name that does not resolve) and `error` a text
+// without the address: "connection refused (ECONNREFUSED)", "resolve HOST: ...".
+Fd Connect(const std::string& host, int port, int timeout_ms, std::string& error,
+           int& error_number);
+// "connection refused (ECONNREFUSED)": strerror in lower case and the errno's name.
+std::string DescribeErrno(int error_number);
 
 enum class IoResult { kOk, kTimeout, kClosed, kError };
 // Reads exactly n bytes unless the peer closes, an error occurs, or no byte arrives for

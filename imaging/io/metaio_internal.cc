@@ -80,6 +80,24 @@ std::uint64_t FileSize(const fs::path& path) {
   return size;
 }
 
+// The size of a header's detached data file; a missing one is an error naming the header,
+// the key and value that point to it, and where it was looked for.
+std::uint64_t DataFileSize(const fs::path& header, const std::string& key, const std::string& value,
+                           const fs::path& data_path) {
+  std::error_code ec;
+  if (!fs::exists(data_path, ec)) {
+    fs::path dir = data_path.parent_path();
+    if (dir.empty()) dir = ".";
+    const fs::path abs = fs::absolute(dir, ec);
+    Fail(header, key + " '" + value + "' not found (looked in " +
+                     (ec ? dir : abs).lexically_normal().string() + ")");
+  }
+  if (!fs::is_regular_file(data_path, ec)) {
+    Fail(header, key + " '" + value + "' (" + data_path.string() + ") is not a regular file");
+  }
+  return FileSize(data_path);
+}
+
 }  // namespace
 
 std::string Trim(const std::string& s) {
@@ -173,6 +191,7 @@ TextHeader ReadTextHeader(const fs::path& path) {
   std::string line;
   if (!reader.Next(line)) Fail(path, "empty file (no header)");
   std::size_t line_no = 1;
+  std::string data_key, data_value;  // the detached data file's key and value, if any
   if (line.rfind("NRRD", 0) == 0) {
     h.syntax = HeaderSyntax::kNrrd;
     bool ended = false;
@@ -201,6 +220,8 @@ TextHeader ReadTextHeader(const fs::path& path) {
     if (auto df = h.Find("data file"); df || (df = h.Find("datafile"))) {
       h.data_path = path.parent_path() / *df;
       h.data_offset = 0;
+      data_key = "data file";
+      data_value = *df;
     }
   } else {
     h.syntax = HeaderSyntax::kMetaImage;
@@ -238,9 +259,12 @@ TextHeader ReadTextHeader(const fs::path& path) {
     } else {
       h.data_path = path.parent_path() / df;
       h.data_offset = 0;
+      data_key = "ElementDataFile";
+      data_value = df;
     }
   }
-  const std::uint64_t data_size = h.data_path == path ? size : FileSize(h.data_path);
+  const std::uint64_t data_size =
+      h.data_path == path ? size : DataFileSize(path, data_key, data_value, h.data_path);
   if (h.data_offset > data_size) Fail(path, "header runs past the end of the file");
   h.data_available = data_size - h.data_offset;
   return h;

@@ -5,6 +5,7 @@ list(APPEND IMAGING_SOURCES
   io/plus_sequence.cc
   io/sequence_reader.cc
   io/sequence_writer.cc
+  io/async_sequence_writer.cc
   io/recording.cc
   io/em_log_import.cc)
 list(APPEND IMAGING_PRIVATE_DEPS ${VTK_LIBRARIES} ZLIB::ZLIB)

@@ -7,9 +7,13 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 #include <string>
 
+#include "hw/io/run_dir_guard.h"
+#include "hw/io/run_record.h"
 #include "tests/test_util/cli_runner.h"
 #include "tests/test_util/temp_dir.h"
 
@@ -75,6 +79,59 @@ TEST(DemoCli, BadOptionsAreClearErrors) {
   r = RunCli("demo --duration 2 --delay-min 0.2 --delay-max 0.1");
   EXPECT_NE(r.rc, 0);
   EXPECT_NE(r.err.find("--delay"), std::string::npos) << r.err;
+}
+
+// The RUN directory of a run that fails (demo, track --replay): hw::RunDirGuard removes
+// what the process created so that the retry with the same --out works, and never what was
+// there before.
+void FailedRun(const fs::path& run, const char* extra_file = nullptr) {
+  try {
+    hw::RunDirGuard guard(run);
+    hw::RunWriter writer(run, hw::RunInfo{});
+    writer.AddTarget({});
+    if (extra_file != nullptr) std::ofstream(run / extra_file) << "partial\n";
+    throw std::runtime_error("the recording cannot be read");
+  } catch (const std::exception&) {  // the failure, or RunWriter's on a RUN written before
+  }
+}
+
+TEST(DemoCli, FailedRunLeavesNoHalfWrittenRunSoTheRetryWorks) {
+  const testing::TempDir dir("demo_cli", true);
+  const fs::path run = dir.path() / "runs" / "a" / "RUN";
+  FailedRun(run, "volumes.igs.mhd");
+  EXPECT_FALSE(fs::exists(dir.path() / "runs")) << "the folders the run created are removed";
+  EXPECT_TRUE(fs::exists(dir.path()));
+  {  // the retry writes the RUN and keeps it
+    hw::RunDirGuard guard(run);
+    hw::RunWriter writer(run, hw::RunInfo{});
+    writer.AddTarget({});
+    writer.Flush();
+    guard.Keep();
+  }
+  EXPECT_TRUE(fs::exists(run / "run.json"));
+  EXPECT_TRUE(fs::exists(run / "targets.csv"));
+  // A RUN written once stays: a run that then fails on it removes nothing of it.
+  FailedRun(run);
+  EXPECT_TRUE(fs::exists(run / "run.json"));
+  EXPECT_TRUE(fs::exists(run / "targets.csv"));
+}
+
+TEST(DemoCli, FailedRunInAUserFolderRemovesOnlyWhatItCreated) {
+  const testing::TempDir dir("demo_cli", true);
+  const fs::path run = dir.path() / "mine";
+  fs::create_directories(run / "notes");
+  std::ofstream(run / "readme.txt") << "the user's\n";
+  FailedRun(run, "volumes.igs.mhd");
+  EXPECT_TRUE(fs::exists(run / "readme.txt"));
+  EXPECT_TRUE(fs::is_directory(run / "notes"));
+  EXPECT_FALSE(fs::exists(run / "run.json"));
+  EXPECT_FALSE(fs::exists(run / "targets.csv"));
+  EXPECT_FALSE(fs::exists(run / "volumes.igs.mhd"));
+  // A path that is a file is not the guard's: it is left alone.
+  const fs::path file = dir.path() / "file";
+  std::ofstream(file) << "x";
+  { hw::RunDirGuard guard(file); }
+  EXPECT_TRUE(fs::exists(file));
 }
 
 }  // namespace

@@ -4,9 +4,11 @@
 // there is one, and the problem; with --skip-bad the bad trial is skipped and listed.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tests/test_util/cli_runner.h"
@@ -269,6 +271,55 @@ TEST(LabCli, MissingOrEmptyDatasetFolderIsNamed) {
   const Result empty = RunCli("lab diagnose " + dir.str() + " --skip-bad");
   EXPECT_NE(empty.rc, 0);
   EXPECT_TRUE(Contains(empty.err, dir.str())) << empty.err;
+}
+
+// The names of a folder's entries, to check that a failed command leaves nothing behind.
+std::vector<std::string> Listing(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+// The lab decides the kind of data from the input: a catheter trial's CSV (given instead
+// of its dataset folder) is never fitted with a motion model, a dataset folder never with
+// one, and a motion trace never with a catheter model; each is an error naming the input,
+// its kind and the model, and nothing is written.
+TEST(LabCli, ModelOfTheWrongKindOfDataIsNamed) {
+  TempDir dir(kTag);
+  Record(dir, "--configs seed --trajectories sine --duration 1");
+  fs::path trial;
+  for (const auto& e : fs::directory_iterator(dir.path()))
+    if (e.path().extension() == ".csv" && (trial.empty() || e.path() < trial)) trial = e.path();
+  ASSERT_FALSE(trial.empty());
+  const std::vector<std::string> before = Listing(dir.path());
+  for (const auto& [cmd, model] : std::vector<std::pair<std::string, std::string>>{
+           {"compare", ""}, {"compare", " --model seed"}, {"diagnose", " --model heartbeat:2"}}) {
+    const Result r = RunCli("lab " + cmd + " " + trial.string() + model + " --json");
+    EXPECT_NE(r.rc, 0) << cmd << model;
+    EXPECT_TRUE(r.out.empty()) << r.out;
+    EXPECT_TRUE(Contains(r.err, trial.string() + " is a catheter trial (columns t, base_cmd"))
+        << r.err;
+    EXPECT_TRUE(Contains(r.err, "echoservo lab compare " + dir.str() + " --model seed")) << r.err;
+    if (!model.empty()) EXPECT_TRUE(Contains(r.err, model.substr(9))) << r.err;
+  }
+  const Result folder = RunCli("lab compare " + dir.str() + " --model heartbeat:2");
+  EXPECT_NE(folder.rc, 0);
+  EXPECT_TRUE(Contains(folder.err, dir.str() + " is a catheter dataset")) << folder.err;
+  EXPECT_TRUE(Contains(folder.err, "'heartbeat:2' is a motion-trace model")) << folder.err;
+  EXPECT_EQ(Listing(dir.path()), before);
+
+  TempDir motion(std::string(kTag) + "_motion", true);
+  const std::string trace = motion.str() + "/trace.csv";
+  ASSERT_EQ(RunCli("sim motion --out " + trace + " --duration 4").rc, 0);
+  const Result r = RunCli("lab diagnose " + trace + " --model seed+capstan_friction");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_TRUE(Contains(r.err, trace + " is a motion trace (columns t, position")) << r.err;
+  EXPECT_TRUE(Contains(r.err, "--model 'seed+capstan_friction' is a catheter model")) << r.err;
+  const Result report = RunCli("lab report " + trace + " --out " + motion.str() + "/r.html");
+  EXPECT_NE(report.rc, 0);
+  EXPECT_TRUE(Contains(report.err, trace + " is a motion trace")) << report.err;
+  EXPECT_EQ(Listing(motion.path()), std::vector<std::string>{"trace.csv"});
 }
 
 TEST(LabCli, AllBadFailsEvenWithSkipBad) {

@@ -3,6 +3,7 @@
 // by `echoservo sim motion`; bad input fails with an error naming the file, line, column.
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -100,6 +101,21 @@ TEST(PredictCli, BadTracesFailWithWhereAndWhy) {
   ExpectContains(r.err, "missing required column 'nope'");
   r = RunCli("predict " + kPhantom + " --harmonics 40");
   ExpectContains(r.err, "--harmonics");
+}
+
+// A folder or a missing path is named with why and what was expected (not "read error").
+TEST(PredictCli, FolderOrMissingTraceIsNamedWithWhy) {
+  TempDir dir("predict_cli", true);
+  RunResult r = RunCli("predict " + dir.str() + " --json");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_TRUE(r.out.empty()) << r.out;
+  ExpectContains(r.err, dir.str() + ": is a directory; expected a motion-trace CSV file");
+  ExpectContains(r.err, "t,position");
+  EXPECT_EQ(r.err.find("read error"), std::string::npos) << r.err;
+  r = RunCli("predict " + dir.str() + "/none.csv");
+  EXPECT_NE(r.rc, 0);
+  ExpectContains(r.err, dir.str() + "/none.csv: no such file");
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
 }
 
 TEST(PredictCli, MotionLabNamesTheHiddenRespiration) {

@@ -5,9 +5,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <deque>
+#include <functional>
 #include <limits>
 #include <numbers>
+#include <random>
 #include <stdexcept>
 
 namespace echoservo::control {
@@ -233,6 +238,247 @@ TEST(TargetFollower, ConfigIsValidated) {
   c = {};
   c.tip_noise_mm = -0.1;
   EXPECT_THROW(TargetFollower{c}, std::invalid_argument);
+}
+
+// The image response check, in a closed loop in simulated time as `echoservo servo` runs it
+// (standoff 8 mm, offset gain 0.05, scale estimated): the follower's reference drives a tip
+// that follows it with a 6 ms first-order lag (the servo's measured lag, docs/control.md);
+// a volume acquired every 40 ms (k % 40) sees the tip through `image` and reaches the follower
+// after a uniform 50–100 ms imaging delay, in order. The target, in image mm, is 40 mm +
+// A·cos(2π·1.2·t). The follower is enabled at its first accepted estimate (auto-enable).
+struct LoopRun {
+  double enabled_s = -1, fault_s = -1, hold_s = -1, retract_s = -1;
+  double clamped_after_fault_s = 0;    // Update's clamp flag, per 1 ms cycle
+  bool following_after_fault = false;  // must stay false: the fault latches
+  bool ever_judged = false;
+  double min_judged_gain = std::numeric_limits<double>::infinity();
+  double judged_gain_sum = 0;
+  std::uint64_t judged = 0;
+  double max_offset_change_mm = 0;  // |c − c at the first estimate|
+  double offset_at_fault_mm = 0, offset_end_mm = 0, scale_at_fault = 0, scale_end = 0;
+};
+
+using ImageTip = std::function<double(double tip_mm, std::mt19937& rng)>;
+
+LoopRun RunLoop(const FollowerConfig& cfg, double amplitude_mm, double duration_s,
+                const ImageTip& image, std::uint32_t seed = 1) {
+  constexpr double kDt = 0.001, kLagS = 0.006;
+  TargetFollower f(cfg);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> delay(0.05, 0.10);
+  struct Pending {
+    TargetEstimateInput e;
+    double deliver_s;
+  };
+  std::deque<Pending> pending;
+  LoopRun r;
+  double tip = 0.0, first_offset = 0.0, last_deliver = 0.0;
+  for (long k = 0; k * kDt < duration_s; ++k) {
+    const double t = static_cast<double>(k) * kDt;
+    if (k % 40 == 0) {  // acquisition
+      TargetEstimateInput e = Estimate(t, image(tip, rng), 0.0);
+      e.target_motion.cos_mm = {amplitude_mm};
+      last_deliver = std::max(last_deliver, t + delay(rng));
+      e.published_s = last_deliver;
+      e.target_motion.valid_until_s = last_deliver + 0.5;
+      pending.push_back({e, last_deliver});
+    }
+    while (!pending.empty() && pending.front().deliver_s <= t) {
+      const bool first = !f.has_estimate();
+      EXPECT_TRUE(f.Accept(pending.front().e, t)) << t;
+      pending.pop_front();
+      if (first) {
+        f.Enable(t);
+        r.enabled_s = t;
+        first_offset = f.offset_mm();
+      }
+      const ResponseCheck& rc = f.response();
+      if (rc.judged) {
+        r.ever_judged = true;
+        ++r.judged;
+        r.judged_gain_sum += rc.gain;
+        r.min_judged_gain = std::min(r.min_judged_gain, rc.gain);
+      }
+      r.max_offset_change_mm =
+          std::max(r.max_offset_change_mm, std::abs(f.offset_mm() - first_offset));
+    }
+    f.Update(t, tip);
+    const bool faulted = f.faults() & follower_fault::kImageNotResponding;
+    if (faulted && r.fault_s < 0) {
+      r.fault_s = t;
+      r.offset_at_fault_mm = f.offset_mm();
+      r.scale_at_fault = f.scale();
+    }
+    if (r.fault_s >= 0) {
+      if (r.hold_s < 0 && f.mode() == FollowerMode::kHolding) r.hold_s = t;
+      if (r.retract_s < 0 && f.mode() == FollowerMode::kRetracting) r.retract_s = t;
+      r.following_after_fault |= f.mode() == FollowerMode::kFollowing;
+      if (f.reference_clamped()) r.clamped_after_fault_s += kDt;
+    }
+    const double ref = f.Evaluate(t).position_mm;
+    tip += (ref - tip) * kDt / kLagS;
+  }
+  r.offset_end_mm = f.offset_mm();
+  r.scale_end = f.scale();
+  return r;
+}
+
+FollowerConfig ServoCommandConfig() {
+  FollowerConfig c;
+  c.standoff_mm = 8.0;
+  c.offset_gain = 0.05;
+  c.estimate_scale = true;
+  return c;
+}
+
+// The thresholds, from the physics: the image sees catheter mm scaled by k = 1540/1482 =
+// 1.04 (sound speed in water), the detected tip has σ = 0.2 mm noise (tip_noise_mm;
+// measured 0.18 mm, docs/live.md). A verdict needs SE(gain) = σ/√Σ(x − x̄)² ≤ 0.1, so a
+// responding image (gain 1.04) is 7 SE above the 0.3 threshold, and a static one (gain 0)
+// 3 SE below it. This run adds 1 % gross detector outliers (±3 mm) to the Gaussian noise and
+// lasts 10 simulated minutes with the demo's 10 mm peak-to-peak target.
+TEST(TargetFollowerResponse, ARespondingImageNeverFaultsOverALongRunWithNoiseAndDelay) {
+  const double k = 1540.0 / 1482.0, c0 = 30.0;
+  const ImageTip image = [&](double tip, std::mt19937& rng) {
+    std::normal_distribution<double> noise(0.0, 0.2);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const double outlier = u(rng) < 0.01 ? (u(rng) < 0.5 ? -3.0 : 3.0) : 0.0;
+    return k * tip + c0 + noise(rng) + outlier;
+  };
+  const LoopRun r = RunLoop(ServoCommandConfig(), 5.0, 600.0, image);
+  EXPECT_LT(r.fault_s, 0) << "false fault at " << r.fault_s << " s";
+  ASSERT_GT(r.judged, 10000u);  // judged on (nearly) every volume
+  // The slope estimates k: mean within 0.02 (its SE over 2 s windows of ±5 mm motion is
+  // 0.2/√(50·12.5) ≈ 0.008), and never near the threshold.
+  EXPECT_NEAR(r.judged_gain_sum / static_cast<double>(r.judged), k, 0.02);
+  EXPECT_GT(r.min_judged_gain, 0.8);
+  // The offset stays where the registration is: c0 + (1 − k)·(mean tip), within 1 mm.
+  EXPECT_LT(r.max_offset_change_mm, 1.0);
+}
+
+// The failure: a scanner serving a static scene. The image shows the tip where it
+// was, 10 mm short of the target (2 mm more than the standoff): following steps the catheter
+// by 2 mm, the image does not answer, and the offset estimate would slide without end.
+TEST(TargetFollowerResponse, AStaticImageFaultsWithinTwoSecondsHoldsRetractsAndFreezesTheOffset) {
+  const ImageTip still = [](double, std::mt19937& rng) {
+    std::normal_distribution<double> noise(0.0, 0.2);
+    return 30.0 + noise(rng);
+  };
+  FollowerConfig cfg = ServoCommandConfig();
+  const LoopRun r = RunLoop(cfg, 0.0, 20.0, still);
+  ASSERT_GE(r.enabled_s, 0);
+  ASSERT_GE(r.fault_s, 0) << "no fault";
+  std::printf("static image: fault %.3f s after following began; offset moved %.2f mm\n",
+              r.fault_s - r.enabled_s, r.max_offset_change_mm);
+  EXPECT_LE(r.fault_s - r.enabled_s, 2.0);
+  // Hold at once, retract after retract_after_s (the stale-estimate watchdog's path), never
+  // follow again while estimates keep coming, never at a clamp.
+  EXPECT_EQ(r.hold_s, r.fault_s);
+  EXPECT_NEAR(r.retract_s - r.fault_s, cfg.retract_after_s, 0.0015);
+  EXPECT_FALSE(r.following_after_fault);
+  EXPECT_EQ(r.clamped_after_fault_s, 0.0);
+  // The offset and scale are frozen at the fault, and the offset never left its bound.
+  EXPECT_EQ(r.offset_end_mm, r.offset_at_fault_mm);
+  EXPECT_EQ(r.scale_end, r.scale_at_fault);
+  EXPECT_LE(r.max_offset_change_mm, cfg.max_offset_change_mm + 1e-9);
+
+  // Without the check the offset still cannot slide beyond its physical bound.
+  cfg.check_response = false;
+  const LoopRun unchecked = RunLoop(cfg, 0.0, 20.0, still);
+  EXPECT_LT(unchecked.fault_s, 0);
+  EXPECT_GT(unchecked.max_offset_change_mm, 2.0);                              // it did slide …
+  EXPECT_LE(unchecked.max_offset_change_mm, cfg.max_offset_change_mm + 1e-9);  // … to the bound
+}
+
+// A catheter that barely moves gives no verdict either way: ±0.1 mm of motion against
+// 0.2 mm of image noise cannot tell a responding image from a static one.
+TEST(TargetFollowerResponse, ABarelyMovingCatheterGetsNoVerdict) {
+  // The tip starts where it should be, a standoff short of the target's mean (image 32 mm =
+  // catheter 0 mm): no step at enable.
+  const ImageTip responding = [](double tip, std::mt19937& rng) {
+    std::normal_distribution<double> noise(0.0, 0.2);
+    return tip + 32.0 + noise(rng);
+  };
+  // Static, with the tip seen exactly a standoff short of the target: nothing to slide.
+  const ImageTip still = [](double, std::mt19937& rng) {
+    std::normal_distribution<double> noise(0.0, 0.2);
+    return 32.0 + noise(rng);
+  };
+  for (const auto& [name, image] : {std::pair{"responding", responding}, {"static", still}}) {
+    const LoopRun r = RunLoop(ServoCommandConfig(), 0.1, 60.0, image);
+    EXPECT_FALSE(r.ever_judged) << name;
+    EXPECT_LT(r.fault_s, 0) << name;
+  }
+}
+
+// Enable re-arms a faulted check: judged afresh, and a still-static image faults again.
+TEST(TargetFollowerResponse, EnableClearsTheFaultAndTheCheckJudgesAfresh) {
+  FollowerConfig cfg = ServoCommandConfig();
+  TargetFollower f(cfg);
+  double tip = 0.0;
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.2);
+  std::vector<double> faults_at;
+  for (long k = 0; k < 8000; ++k) {
+    const double t = static_cast<double>(k) * 0.001;
+    if (k % 40 == 0 && k >= 80) {
+      TargetEstimateInput e = Estimate(t - 0.06, 30.0 + noise(rng), 0.05);
+      e.target_motion.cos_mm = {0.0};
+      ASSERT_TRUE(f.Accept(e, t));
+      if (k == 80) f.Enable(t);
+    }
+    f.Update(t, tip);
+    if (f.counters().image_not_responding_events > faults_at.size()) faults_at.push_back(t);
+    if (k == 4000) {
+      ASSERT_EQ(faults_at.size(), 1u);
+      EXPECT_EQ(f.mode(), FollowerMode::kRetracting);
+      f.Enable(t);  // the operator re-arms
+      EXPECT_FALSE(f.faults() & follower_fault::kImageNotResponding);
+      EXPECT_FALSE(f.response().judged);
+      EXPECT_EQ(f.mode(), FollowerMode::kFollowing);
+    }
+    tip += (f.Evaluate(t).position_mm - tip) * 0.001 / 0.006;
+  }
+  ASSERT_EQ(faults_at.size(), 2u);
+  EXPECT_LE(faults_at[1] - 4.0, 2.0);
+}
+
+TEST(TargetFollowerResponse, ConfigIsValidated) {
+  auto bad = [](auto set) {
+    FollowerConfig c;
+    set(c);
+    EXPECT_THROW(TargetFollower{c}, std::invalid_argument);
+  };
+  bad([](FollowerConfig& c) { c.max_offset_change_mm = 0.0; });
+  bad([](FollowerConfig& c) { c.response_window_s = 0.0; });
+  bad([](FollowerConfig& c) { c.response_delay_s = -0.1; });
+  bad([](FollowerConfig& c) { c.response_min_excitation_mm = std::nan(""); });
+  bad([](FollowerConfig& c) { c.response_max_gain_se = 0.0; });
+  bad([](FollowerConfig& c) { c.response_min_volumes = 2; });
+  bad([](FollowerConfig& c) { c.response_min_gain = 1.0; });
+}
+
+// The travel bit says whether the reference lies outside travel now; it clears once the
+// reference is back inside (it used to stay set for the rest of the run).
+TEST(TargetFollower, TravelBitFollowsTheClampAndClearsWhenTheReferenceReturns) {
+  FollowerConfig c;
+  c.standoff_mm = 3.0;
+  c.travel_min_mm = -2.0;
+  c.travel_max_mm = 8.0;
+  TargetFollower f(c);
+  f.Update(0.0, 0.0);
+  f.Enable(0.0);
+  ASSERT_TRUE(f.Accept(Estimate(0.0, 30.0, 0.0), 0.0));  // c = 30: reference 2–12 mm
+  int clamped = 0, cycles = 0;
+  for (double t = 0.001; t < 0.4; t += 0.001, ++cycles) {
+    f.Update(t, 0.0);
+    const double want = Target(t) - 3.0 - 30.0;
+    EXPECT_EQ(f.reference_clamped(), want > 8.0) << t;
+    EXPECT_EQ((f.faults() & follower_fault::kTravelLimit) != 0, want > 8.0) << t;
+    clamped += f.reference_clamped();
+  }
+  // 7 + 5·cos(2π·1.2·t) > 8 while t < acos(0.2)/(2π·1.2) = 0.1816 s: 181 of the cycles.
+  EXPECT_NEAR(clamped, 181, 1);
 }
 
 }  // namespace

@@ -140,5 +140,19 @@ TEST(SequenceReader, DataMissingOrTooManyFramesAreErrorsNamingTheFile) {
   }
 }
 
+TEST(SequenceReader, MissingDataFileNamesTheHeaderAndTheElementDataFile) {
+  const testing::TempDir dir("seqr", true);
+  const fs::path header = dir.path() / "gone.igs.mhd";
+  WriteText(header, DetachedHeader(2, 2, 2, 3, "gone.igs.raw"));
+  const std::string where = fs::absolute(dir.path()).lexically_normal().string();
+  for (auto read : {+[](const fs::path& p) { SequenceReader x(p); },
+                    +[](const fs::path& p) { ReadPlusSequence(p); },
+                    +[](const fs::path& p) { OpenRecording(p); }}) {
+    const std::string m = InvalidArgumentMessage([&] { read(header); });
+    ExpectContains(m, header.string() + ": ElementDataFile 'gone.igs.raw' not found (looked in " +
+                          where + ")");
+  }
+}
+
 }  // namespace
 }  // namespace echoservo::imaging

@@ -38,6 +38,29 @@ TEST(StreamCli, ScannerToIngestOverLoopback) {
   EXPECT_GE(j["latency_ms"]["p99"].get<double>(), j["latency_ms"]["p50"].get<double>());
 }
 
+// The scanner's summary says a client that left is a client disconnected, apart from frames
+// (none lost here: the phantom's 30 frames went to the client that stayed).
+TEST(StreamCli, ScannerSummaryCountsADisconnectedClientApartFromFrames) {
+  testing::TempDir dir("stream_cli", true);
+  const int port = 20000 + static_cast<int>((::getpid() + 7919) % 20000);
+  const std::string cli = std::string(ECHOSERVO_CLI);
+  const std::string summary = (dir.path() / "summary.txt").string();
+  const std::string ingest = cli + " ingest --connect 127.0.0.1:" + std::to_string(port);
+  // Two clients: one takes 3 frames and leaves, the other takes all 30.
+  const auto r = RunShell(cli + " scanner --source phantom --port " + std::to_string(port) +
+                          " --frames 30 --rate 30 --min-clients 2 > " + ShellQuote(summary) +
+                          " 2>/dev/null & sleep 0.5; " + ingest +
+                          " --frames 30 --duration 20 > /dev/null 2>&1 & " + ingest +
+                          " --frames 3 --duration 20 > /dev/null; wait");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const std::string text = testing::ReadFile(summary);
+  EXPECT_NE(text.find("sent 30 frames to 2 clients; 1 client disconnected, 0 clients cut off "
+                      "for stalling; 0 frames reached no client"),
+            std::string::npos)
+      << text;
+  EXPECT_EQ(text.find("dropped"), std::string::npos) << text;
+}
+
 TEST(StreamCli, RecordReplayAndInfo) {
   testing::TempDir dir("stream_cli", true);
   const auto seq = dir.path() / "sim.igs.mha";

@@ -120,5 +120,26 @@ TEST(ReadVolume, CorruptFilesGiveClearErrors) {
   ExpectContains(InvalidArgumentMessage([&] { ReadVolume(garbage); }), "garbage.vti");
 }
 
+// A detached header whose pixel file is missing: the error names the header, the
+// ElementDataFile it points to and where it was looked for (not only the .raw); a sequence
+// header the same (SequenceReader, OpenRecording and `info` read it the same way).
+TEST(ReadVolume, MissingDataFileNamesTheHeaderAndTheElementDataFile) {
+  testing::TempDir dir("volio", true);
+  const fs::path header = dir.path() / "x.mhd";
+  WriteVolume(MakeVolume(), header, {.compress = false});
+  ASSERT_TRUE(fs::exists(dir.path() / "x.raw"));
+  fs::remove(dir.path() / "x.raw");
+  const std::string msg = InvalidArgumentMessage([&] { ReadVolume(header); });
+  ExpectContains(msg, header.string() + ": ElementDataFile 'x.raw' not found (looked in " +
+                          fs::absolute(dir.path()).lexically_normal().string() + ")");
+  ExpectContains(InvalidArgumentMessage([&] { InspectVolumeFile(header); }), "x.mhd");
+
+  // A data file that is a folder is named as such.
+  fs::create_directory(dir.path() / "x.raw");
+  ExpectContains(InvalidArgumentMessage([&] { ReadVolume(header); }),
+                 "x.mhd: ElementDataFile 'x.raw' (");
+  ExpectContains(InvalidArgumentMessage([&] { ReadVolume(header); }), "not a regular file");
+}
+
 }  // namespace
 }  // namespace echoservo::imaging

@@ -6,7 +6,10 @@
 // detections and scores against its EM log. Real time on a shared machine: only what holds
 // under load is asserted (counts within the schedules, limits never violated, watchdog
 // times from the configuration).
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -129,20 +132,37 @@ TEST(LiveProcesses, ReplayOfARecordedDemoReproducesItsDetectionsAndScoresAgainst
       ShellQuote(run.string()));
   ASSERT_EQ(r.rc, 0) << r.err;
   ASSERT_TRUE(fs::exists(run / "volumes.igs.mhd"));
-  EXPECT_EQ(nlohmann::json::parse(r.out)["volumes_recorded"].get<int>() + 1,
+  const auto demo = nlohmann::json::parse(r.out);
+  // Every volume the tracker processed was recorded, or dropped by the recorder and counted
+  // (its queue full: a host saturated by other work).
+  const int dropped = demo["volumes_record_dropped"].get<int>();
+  EXPECT_EQ(demo["volumes_recorded"].get<int>() + dropped + 1,
             static_cast<int>(Lines(run / "targets.csv").size()));
+  // Recording does not lose the latency figures (it once did: the tracker noted a volume's
+  // arrival only after writing it, when the servo had applied its estimate already).
+  EXPECT_GT(demo["latency_ms"]["count"].get<int>(), 0) << demo.dump();
+  ASSERT_TRUE(fs::exists(run / "latency.csv"));
+  EXPECT_GT(Lines(run / "latency.csv").size(), 1u);
+  const auto recording = ParseFile(run / "volumes.json");  // the recorder's counts, in the RUN
+  EXPECT_EQ(recording["volumes_recorded"], demo["volumes_recorded"]);
+  EXPECT_EQ(recording["volumes_record_dropped"], dropped);
   r = RunCli("track --replay " + ShellQuote((run / "volumes.igs.mhd").string()) + " --json --out " +
              ShellQuote(replay.string()));
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
-  // Every volume the demo's tracker processed was recorded and replayed, and the same
-  // detector on the same volumes finds the same catheter and target.
+  // Every recorded volume is replayed, and (with none dropped: the detector tracks from
+  // the volume before) the same detector on the same volumes finds the same catheter and
+  // target.
   const std::vector<std::string> live = Lines(run / "targets.csv"),
                                  again = Lines(replay / "targets.csv");
-  ASSERT_EQ(live.size(), again.size());
-  EXPECT_EQ(j["volumes"].get<std::size_t>() + 1, live.size());
-  for (std::size_t i = 1; i < live.size(); ++i)
-    ASSERT_EQ(Detection(live[i]), Detection(again[i])) << "row " << i;
+  EXPECT_EQ(j["volumes"], demo["volumes_recorded"]);
+  if (dropped == 0) {
+    ASSERT_EQ(live.size(), again.size());
+    for (std::size_t i = 1; i < live.size(); ++i)
+      ASSERT_EQ(Detection(live[i]), Detection(again[i])) << "row " << i;
+  } else {
+    std::printf("the recorder dropped %d volume(s) on this host: rows not compared\n", dropped);
+  }
   // The replay's RUN carries the recording's EM calibration; the report scores it against
   // the recorded EM log.
   r = RunCli("report " + ShellQuote(replay.string()) + " --em " +
@@ -179,15 +199,15 @@ TEST(LiveProcesses, ADemoKilledMidRunLeavesARunItsReportReads) {
   EXPECT_TRUE(std::isfinite(rep["tip_to_target_rms_mm"].get<double>()));
   const std::vector<std::string> servo = Lines(run / "servo.csv");
   EXPECT_GT(servo.size(), 300u);
-  // The volume recording holds every volume the tracker had finished with, but perhaps the
-  // one in flight (its targets.csv row is written before the volume is appended), and
-  // replays to the same detections.
+  // The volume recording holds every volume the tracker had finished with, but those still
+  // in the recorder's queue (16) and the one being written (its targets.csv row is written
+  // before the volume is handed to the recorder), and replays to the same detections.
   const std::vector<std::string> targets = Lines(run / "targets.csv");
   r = RunCli("track --replay " + ShellQuote((run / "volumes.igs.mhd").string()) + " --json --out " +
              ShellQuote((dir.path() / "replay").string()));
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto replayed = nlohmann::json::parse(r.out)["volumes"].get<std::size_t>();
-  EXPECT_GE(replayed + 1, targets.size() - 1) << "volumes lost beyond the one in flight";
+  EXPECT_GE(replayed + 16 + 1, targets.size() - 1) << "volumes lost beyond those in flight";
   EXPECT_LE(replayed, targets.size() - 1);
   const std::vector<std::string> again = Lines(dir.path() / "replay" / "targets.csv");
   ASSERT_EQ(again.size(), replayed + 1);
@@ -244,8 +264,8 @@ TEST(LiveProcesses, AScannerThatTruncatesDisconnectsAndReconnectsLeavesTheServoS
                ShellQuote(port.string()) + " 6 2.5 6 > " + ShellQuote(scanner.string()) +
                " & for i in $(seq 1 100); do [ -s " + ShellQuote(port.string()) +
                " ] && break; sleep 0.1; done; " + kCli + " track --connect 127.0.0.1:$(cat " +
-               ShellQuote(port.string()) + ") --harmonics 3 --duration 16" + link + " > " +
-               ShellQuote(track.string()) + "; rc=$?; wait; exit $rc");
+               ShellQuote(port.string()) + ") --harmonics 3 --duration 16 --follow-static-target" +
+               link + " > " + ShellQuote(track.string()) + "; rc=$?; wait; exit $rc");
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto sc = ParseFile(scanner), t = ParseFile(track), s = ParseFile(servo);
   ASSERT_FALSE(sc.is_discarded()) << ReadFile(scanner);
@@ -263,8 +283,11 @@ TEST(LiveProcesses, AScannerThatTruncatesDisconnectsAndReconnectsLeavesTheServoS
   EXPECT_EQ(t["ingest"]["rejected_by_reason"]["truncated_message"].get<int>(), 1) << t.dump();
   EXPECT_EQ(t["ingest"]["connections"].get<int>(), 2) << t.dump();
   EXPECT_GE(t["published"].get<int>(), 5);
-  // The servo: tracking, then (no estimate for > 2 s) holding and retracting, then tracking
-  // again; never outside a limit.
+  // The servo: tracking, then holding and retracting; never outside a limit. The scene is
+  // static, so the image does not answer the catheter: either the outage (no estimate for
+  // > 2 s) retracts it and it follows again after the reconnection, or the image response
+  // check (docs/control.md) faults first, and that fault is latched until an operator's
+  // enable: no following after it.
   EXPECT_EQ(s["limit_violations"].get<int>(), 0);
   std::vector<std::string> modes;
   for (const auto& m : s["timeline"]) {
@@ -274,10 +297,15 @@ TEST(LiveProcesses, AScannerThatTruncatesDisconnectsAndReconnectsLeavesTheServoS
   const auto first_tracking = std::find(modes.begin(), modes.end(), "tracking");
   ASSERT_NE(first_tracking, modes.end()) << s.dump();
   const auto retract = std::find(first_tracking, modes.end(), "retracting");
-  ASSERT_NE(retract, modes.end()) << "no safe state during the outage: " << s.dump();
-  EXPECT_NE(std::find(retract, modes.end(), "tracking"), modes.end())
-      << "did not follow again: " << s.dump();
-  EXPECT_GE(s["resumes"].get<int>(), 1);
+  ASSERT_NE(retract, modes.end()) << "no safe state: " << s.dump();
+  if (s["image_not_responding"].get<int>() > 0) {
+    EXPECT_TRUE(modes.back() == "retracting" || modes.back() == "stopped") << s.dump();
+    EXPECT_EQ(s["time_at_clamp_after_image_fault_s"].get<double>(), 0.0) << s.dump();
+  } else {
+    EXPECT_NE(std::find(retract, modes.end(), "tracking"), modes.end())
+        << "did not follow again: " << s.dump();
+    EXPECT_GE(s["resumes"].get<int>(), 1);
+  }
 }
 
 TEST(LiveProcesses, BadSourcesAreClearErrors) {
@@ -302,6 +330,84 @@ TEST(LiveProcesses, BadSourcesAreClearErrors) {
   r = RunCli("command enable --loopback --dds-domain 65 --wait 1");
   EXPECT_NE(r.rc, 0);
   EXPECT_NE(r.err.find("--standoff"), std::string::npos) << r.err;
+}
+
+// A port on 127.0.0.1 with nothing listening (bound, then closed: the kernel refuses it).
+int RefusedPort() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof addr;
+  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&addr), len) != 0 ||
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
+    if (fd >= 0) ::close(fd);
+    return 1;
+  }
+  ::close(fd);
+  return ntohs(addr.sin_port);
+}
+
+std::size_t Count(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
+  return n;
+}
+
+// Nothing listens: every attempt is reported with the address and the errno text, retried
+// with back-off, and the tracker gives up after --connect-timeout with exit status 1.
+TEST(LiveProcesses, TrackConnectToNoScannerSaysSoRetriesAndFails) {
+  const std::string address = "127.0.0.1:" + std::to_string(RefusedPort());
+  auto r = RunCli("track --connect " + address +
+                  " --connect-timeout 1 --loopback --dds-domain 68 --json");
+  EXPECT_NE(r.rc, 0) << r.out << r.err;
+  EXPECT_NE(r.err.find("track --connect " + address + ": connection refused (ECONNREFUSED)"),
+            std::string::npos)
+      << r.err;
+  // Attempts at 0, 0.25 and 0.75 s (0.25 s doubling) fail before 1 s; each is logged (a
+  // loaded host may start the third late: two are certain).
+  EXPECT_GE(Count(r.err, "(ECONNREFUSED); retrying in"), 2u) << r.err;
+  EXPECT_NE(r.err.find("retrying in 0.25 s (attempt 2)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("retrying in 0.5 s (attempt 3)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("no volume received within --connect-timeout 1 s"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("giving up"), std::string::npos) << r.err;
+  // The summary still comes (with the ingest's counts) before the error.
+  const auto j = nlohmann::json::parse(r.out, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << r.out;
+  EXPECT_EQ(j["volumes"].get<int>(), 0);
+  EXPECT_GE(j["ingest"]["connect_failures"].get<int>(), 2);
+  EXPECT_EQ(j["ingest"]["last_connect_error"], "connection refused (ECONNREFUSED)");
+}
+
+// --duration shorter than the connect timeout: it ends with 0 volumes, which is an error.
+TEST(LiveProcesses, TrackConnectThatNeverReceivedAVolumeFailsAtTheEndOfItsDuration) {
+  const std::string address = "127.0.0.1:" + std::to_string(RefusedPort());
+  const auto r =
+      RunCli("track --connect " + address + " --duration 0.6 --loopback --dds-domain 68");
+  EXPECT_NE(r.rc, 0) << r.out << r.err;
+  EXPECT_NE(r.err.find("no volume received in --duration 0.6 s"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("track: 0 volumes"), std::string::npos) << r.out;
+}
+
+// An operator command and a servo with nobody on the other side say where they looked.
+TEST(LiveProcesses, ACommandWithoutAServoSaysWhereItLooked) {
+  const auto r = RunCli("command stop --loopback --dds-domain 69 --wait 1.2");
+  EXPECT_NE(r.rc, 0);
+  EXPECT_NE(r.err.find("command: no servo on DDS domain 69 (UDPv4 on 127.0.0.1 only, --loopback), "
+                       "topic rt/echoservo/servo_command, after 1 s; still waiting"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("command stop: no servo on DDS domain 69"), std::string::npos) << r.err;
+}
+
+TEST(LiveProcesses, AServoWithoutATrackerSaysWhereItLooks) {
+  const auto r = RunCli("servo --duration 2.2 --loopback --dds-domain 69 --json");
+  EXPECT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.err.find("servo: no tracker on DDS domain 69 (UDPv4 on 127.0.0.1 only, --loopback), "
+                       "topic rt/echoservo/target_estimate, after 2 s; still waiting"),
+            std::string::npos)
+      << r.err;
 }
 
 }  // namespace

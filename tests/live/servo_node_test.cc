@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "hw/hardware_interface.h"
@@ -80,6 +81,8 @@ TEST(ServoNodeMapping, FollowerModesAndFaultsMapOntoTheStateTopic) {
   EXPECT_EQ(ToLinkFaults(control::follower_fault::kRejectedEstimate),
             link::fault::kInvalidEstimate);
   EXPECT_EQ(ToLinkFaults(control::follower_fault::kTravelLimit), link::fault::kTravelLimit);
+  EXPECT_EQ(ToLinkFaults(control::follower_fault::kImageNotResponding),
+            link::fault::kImageNotResponding);
   EXPECT_EQ(
       ToLinkFaults(control::follower_fault::kStopRequested | control::follower_fault::kRetracted),
       0u);
@@ -168,6 +171,96 @@ TEST(ServoNode, BadOptionsThrowNamingTheField) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("state_rate_hz"), std::string::npos) << e.what();
   }
+}
+
+// The failure at the node, in simulated time: a static image (a scanner serving a
+// still scene: the tip always seen at 0 mm, the target at 10 mm, so following at the 8 mm
+// standoff steps the catheter by 2 mm), 25 vol/s acquired 60 ms before they arrive, the
+// follower configured as `echoservo servo` configures it. The response check faults within
+// 2 s of following; the servo holds at once and retracts after retract_after_s (the
+// stale-estimate watchdog's path), never reports tracking again, does not auto-resume,
+// publishes the fault bit, and spends no time at a clamp after the fault.
+TEST(ServoNode, AStaticImageRaisesImageNotRespondingThenHoldsAndRetractsWithoutClamping) {
+  ServoNodeOptions o;
+  o.follower.standoff_mm = 8.0;
+  o.follower.offset_gain = 0.05;
+  o.follower.estimate_scale = true;
+  o.auto_enable = true;
+  Rig rig(o);
+  std::uint64_t seq = 0;
+  double tracking_s = -1, fault_s = -1, hold_s = -1, retract_s = -1, clamped_after_s = 0;
+  bool tracking_after_fault = false, bit_published = false;
+  while (rig.t() < 6.0) {
+    if (rig.k % 40 == 0 && rig.t() >= 0.06) {
+      link::TargetEstimateSample s = Estimate(rig.t(), ++seq, 0.0);
+      s.acquisition_time_s = rig.t() - 0.06;
+      s.motion.sin_mm = {0.0};
+      s.motion.valid_until_s = s.acquisition_time_s + 0.5;
+      ASSERT_TRUE(rig.node.HandleTarget(s, rig.t()));
+    }
+    const ServoCycle c = rig.Step();
+    const double t = rig.t() - kPeriod;
+    if (c.mode == link::ServoMode::kTracking && tracking_s < 0) tracking_s = t;
+    if ((c.faults & link::fault::kImageNotResponding) && fault_s < 0) fault_s = t;
+    if (fault_s >= 0) {
+      if (hold_s < 0 && c.mode == link::ServoMode::kHolding) hold_s = t;
+      if (retract_s < 0 && c.mode == link::ServoMode::kRetracting) retract_s = t;
+      tracking_after_fault |= c.mode == link::ServoMode::kTracking;
+      if (c.clamped) clamped_after_s += kPeriod;
+      bit_published |= (rig.node.State(t).faults & link::fault::kImageNotResponding) != 0;
+    }
+  }
+  ASSERT_GE(tracking_s, 0);
+  ASSERT_GE(fault_s, 0) << "no image-not-responding fault";
+  std::printf("static image: fault %.3f s after following began, retracting %.3f s after it\n",
+              fault_s - tracking_s, retract_s - fault_s);
+  EXPECT_LE(fault_s - tracking_s, 2.0);
+  EXPECT_EQ(hold_s, fault_s);
+  EXPECT_NEAR(retract_s - fault_s, o.follower.retract_after_s, 2 * kPeriod);
+  EXPECT_FALSE(tracking_after_fault);
+  EXPECT_TRUE(bit_published);
+  EXPECT_EQ(clamped_after_s, 0.0);
+  EXPECT_EQ(rig.node.stats().image_not_responding, 1u);
+  EXPECT_EQ(rig.node.stats().resumes, 0u);
+  EXPECT_EQ(rig.node.stats().limit_violations, 0u);
+  // An operator's ENABLE re-arms: following again, until the still image faults again.
+  ASSERT_TRUE(rig.node.HandleCommand(Command(link::ServoAction::kEnable, rig.t(), 8.0), rig.t()));
+  EXPECT_EQ(rig.Step().mode, link::ServoMode::kTracking);
+}
+
+// Honest clamp accounting: with the follower's travel ending at 8 mm, a reference of
+// 7 + 2·sin(2π·t) mm (target 10 ± 2 mm, standoff 3 mm, image = catheter) lies beyond it
+// while sin(2π·t) > 0.5, a third of every period. The node counts that time (every cycle of
+// it an intervention), the travel bit is set exactly then, and the image, which answers,
+// raises no fault.
+TEST(ServoNode, TimeAtTheTravelClampIsCountedAndEveryClampedCycleIsAnIntervention) {
+  ServoNodeOptions o;
+  o.follower.standoff_mm = 3.0;
+  o.follower.travel_max_mm = 8.0;
+  o.auto_enable = true;
+  Rig rig(o);
+  std::uint64_t seq = 0;
+  rig.RunUntil(1.0, true, &seq);  // following from the first estimate
+  const double clamped_before = rig.node.stats().time_at_clamp_s;
+  const std::uint64_t interventions_before = rig.node.stats().limit_interventions;
+  std::uint64_t bit_cycles = 0, clamped_cycles = 0;
+  while (rig.t() < 5.0) {
+    if (rig.k % 40 == 0) rig.node.HandleTarget(Estimate(rig.t(), ++seq, rig.Tip()), rig.t());
+    const ServoCycle c = rig.Step();
+    ASSERT_EQ(c.mode, link::ServoMode::kTracking);
+    clamped_cycles += c.clamped;
+    bit_cycles += (c.faults & link::fault::kTravelLimit) != 0;
+  }
+  const ServoNodeStats& st = rig.node.stats();
+  // 4 periods × 1/3 s; a cycle either side of each of the 4 clamped stretches.
+  EXPECT_NEAR(st.time_at_clamp_s - clamped_before, 4.0 / 3.0, 8 * kPeriod);
+  EXPECT_NEAR(static_cast<double>(clamped_cycles) * kPeriod, 4.0 / 3.0, 8 * kPeriod);
+  EXPECT_GE(st.limit_interventions - interventions_before, clamped_cycles);
+  // The published bit: the clamp now or within the compensator's look-ahead (≤ 10 ms each).
+  EXPECT_GE(bit_cycles, clamped_cycles);
+  EXPECT_LE(bit_cycles, clamped_cycles + 4 * 10);
+  EXPECT_EQ(st.image_not_responding, 0u);
+  EXPECT_EQ(st.limit_violations, 0u);
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -18,6 +19,7 @@
 #include "tests/test_util/expect_error.h"
 #include "tests/test_util/synthetic_run.h"
 #include "tests/test_util/temp_dir.h"
+#include "tests/test_util/trial_files.h"
 
 namespace echoservo {
 namespace {
@@ -157,6 +159,181 @@ TEST(AccuracyReport, HtmlIsOneSelfContainedPageWithTheFigures) {
   char rms[32];
   std::snprintf(rms, sizeof rms, "%.3f mm", c.m.rms_mm);
   EXPECT_NE(html.find(rms), std::string::npos);
+}
+
+// ---------------------------------------------------------------- plausibility checks
+// An EM log that does not belong to the run is refused, estimated or given transform, with
+// the reason and the numbers; options.force gives the figures with the warnings.
+
+hw::EmLog EmOf(const SyntheticRun& s, const TempDir& dir) {
+  testing::WriteSyntheticRun(s, dir.path());
+  return hw::ReadSimEmLog(dir.path() / "em.csv", {});
+}
+
+report::AccuracyOptions GivenTransform(const SyntheticRun& s) {
+  report::AccuracyOptions o;
+  o.alignment.em_to_image = s.em_to_image;
+  o.transform_source = "run.json";
+  return o;
+}
+
+TEST(AccuracyChecks, TheRightLogPassesEveryCheck) {
+  SyntheticRun s;
+  s.duration_s = 10.0;
+  s.em_noise_mm = 0.3;
+  s.image_noise_mm = 0.3;
+  const TempDir dir("checks_right");
+  const Computed c = Compute(s, dir);
+  ASSERT_EQ(c.m.checks.size(), 4u);
+  for (const auto& check : c.m.checks) EXPECT_TRUE(check.passed) << check.message;
+  EXPECT_FALSE(c.m.forced);
+  EXPECT_TRUE(c.m.warnings.empty());
+  EXPECT_EQ(c.m.transform_source, "estimated");
+  // Registration RMS ≈ √3·√(σ_em² + σ_image²) = 0.73 mm, well under 2.4 mm.
+  EXPECT_LT(c.m.checks[0].value, 1.0);
+  // Motion SD ≥ 4 mm along the principal axis against ≈ 0.42 mm of noise per axis.
+  EXPECT_GT(c.m.checks[2].value, 0.99);
+  EXPECT_GT(c.m.checks[3].value, 0.99);
+  // Given the true transform: the same figure, the source named.
+  const report::AccuracyMetrics g =
+      report::ComputeAccuracy(c.run, hw::ReadSimEmLog(c.run.EmPath(), {}), GivenTransform(s));
+  EXPECT_EQ(g.transform_source, "run.json");
+  EXPECT_NEAR(g.rms_mm, c.m.rms_mm, 0.02);
+}
+
+TEST(AccuracyChecks, AnotherMotionsLogIsRefusedWithAGivenTransform) {
+  SyntheticRun s;
+  s.duration_s = 10.0;
+  const TempDir dir("checks_other"), other_dir("checks_other_em");
+  testing::WriteSyntheticRun(s, dir.path());
+  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  SyntheticRun other = s;  // another heartbeat, another breath, same frame and clock
+  other.heart_rate_hz = 1.55;
+  other.breathing_hz = 0.31;
+  other.amplitude_mm = {7.0, 9.0, 3.0};
+  const hw::EmLog em = EmOf(other, other_dir);
+  const std::string why =
+      InvalidArgumentMessage([&] { report::ComputeAccuracy(run, em, GivenTransform(s)); });
+  ExpectContains(why, "EM log refused");
+  ExpectContains(why, "exceeds the 2.40 mm bound (EM tracker 1.40 mm + detector 1.00 mm)");
+  ExpectContains(why, "--force");
+  // Estimated, too.
+  EXPECT_THROW(report::ComputeAccuracy(run, em), std::invalid_argument);
+  // Forced: the figures, marked.
+  report::AccuracyOptions o = GivenTransform(s);
+  o.force = true;
+  const report::AccuracyMetrics m = report::ComputeAccuracy(run, em, o);
+  EXPECT_TRUE(m.forced);
+  ASSERT_FALSE(m.warnings.empty());
+  EXPECT_GT(m.rms_mm, 2.4);
+  report::AccuracyReportOptions ro;
+  const auto j = nlohmann::json::parse(report::AccuracyJson(m, ro));
+  EXPECT_TRUE(j["forced"].get<bool>());
+  EXPECT_EQ(j["warnings"].size(), m.warnings.size());
+  EXPECT_EQ(j["em_to_image_source"], "run.json");
+  const std::string html = report::RenderAccuracyReport(run, m, ro);
+  EXPECT_NE(html.find("id=\"forced\""), std::string::npos);
+  EXPECT_NE(html.find("Warning: figures forced (--force)"), std::string::npos);
+}
+
+TEST(AccuracyChecks, AStillSensorIsRefusedWithAGivenTransform) {
+  SyntheticRun s;
+  s.duration_s = 10.0;
+  const TempDir dir("checks_still"), still_dir("checks_still_em");
+  testing::WriteSyntheticRun(s, dir.path());
+  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  SyntheticRun still = s;
+  still.amplitude_mm = Eigen::Vector3d::Zero();
+  still.em_noise_mm = 0.02;  // the bench sensors' jitter (docs/report.md)
+  const std::string why = InvalidArgumentMessage(
+      [&] { report::ComputeAccuracy(run, EmOf(still, still_dir), GivenTransform(s)); });
+  ExpectContains(why, "the EM sensor's motion does not follow the tracked tip's: correlation");
+  ExpectContains(why, "registration RMS");
+}
+
+TEST(AccuracyChecks, ALogThatStartedLateIsRefused) {
+  // The EM recording started 2.1 s after the first volume, so "both started together" puts
+  // the search window (± 1.5 s) 2.1 s from the true offset: its best offset is an alias one
+  // beat from the truth, where the breathing (0.23 Hz) no longer matches (3.3 mm RMS). A
+  // shift by whole beats and breaths (5 beats ≈ 0.96 breaths = 4.17 s) cannot be told from
+  // the truth by any check: a periodic motion aliases.
+  SyntheticRun s;
+  s.duration_s = 16.0;
+  const TempDir dir("checks_late"), late_dir("checks_late_em");
+  testing::WriteSyntheticRun(s, dir.path());
+  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  SyntheticRun late = s;
+  late.em_lead_s = -2.1;         // from t = 2.1 s
+  late.duration_s = 16.0 + 2.1;  // to the end of the run (16 s)
+  const hw::EmLog em = EmOf(late, late_dir);
+  report::AccuracyOptions narrow = GivenTransform(s);
+  narrow.alignment.max_offset_s = 1.5;
+  const std::string why = InvalidArgumentMessage([&] { report::ComputeAccuracy(run, em, narrow); });
+  ExpectContains(why, "EM log refused");
+  ExpectContains(why, "exceeds the 2.40 mm bound");
+  // With the right centre it is the right log.
+  report::AccuracyOptions o = GivenTransform(s);
+  o.alignment.offset_center_s = s.em_clock_offset_s;
+  const report::AccuracyMetrics m = report::ComputeAccuracy(run, em, o);
+  EXPECT_NEAR(m.alignment.em_time_offset_s, s.em_clock_offset_s, 1e-3);
+  EXPECT_NEAR(m.rms_mm, s.tip_offset_mm.norm(), InterpolationBoundMm(s, s.truth_rate_hz));
+}
+
+TEST(AccuracyChecks, AnOffsetOnTheEdgeOfTheSearchWindowFails) {
+  SyntheticRun s;
+  s.duration_s = 6.0;
+  const TempDir dir("checks_edge");
+  testing::WriteSyntheticRun(s, dir.path());
+  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  const report::PointSeries em = report::ValidEmPoints(hw::ReadSimEmLog(run.EmPath(), {}));
+  report::PointSeries tip;
+  for (const auto& r : run.targets) tip.Add(r.acquired_s, r.tip_mm);
+  report::EmAlignment a = report::AlignEmToImage(em, tip);
+  for (const auto& c : report::CheckAlignment(em, tip, a)) EXPECT_TRUE(c.passed) << c.message;
+  // The same pose and offset, but a window whose edge the offset sits on.
+  a.offset_center_s = a.em_time_offset_s - a.max_offset_s;
+  const auto checks = report::CheckAlignment(em, tip, a);
+  ASSERT_EQ(checks[1].name, "clock offset");
+  EXPECT_FALSE(checks[1].passed);
+  ExpectContains(checks[1].message, "lies at the edge of the search window");
+  ExpectContains(checks[1].message, "widen --max-offset or set --offset-center");
+  for (std::size_t i : {0u, 2u, 3u}) EXPECT_TRUE(checks[i].passed) << checks[i].message;
+}
+
+TEST(AccuracyWindow, StartsWhenTheServoBeganFollowingUnlessFromIsGiven) {
+  SyntheticRun s;
+  s.duration_s = 10.0;
+  const TempDir dir("window");
+  testing::WriteSyntheticRun(s, dir.path());
+  const hw::EmLog em = hw::ReadSimEmLog(dir.path() / "em.csv", {});
+  // The synthetic servo.csv's modes are "hold" then "track": no following row.
+  report::AccuracyMetrics m = report::ComputeAccuracy(hw::ReadRunRecord(dir.path()), em);
+  EXPECT_FALSE(std::isfinite(m.window_from_s));
+  EXPECT_EQ(report::WindowText(m), "whole run: servo.csv has no 'following' row");
+  // The servo's own label (control/target_follower.cc): following from row 20, t = 2 s.
+  std::vector<std::string> lines = testing::ReadLines(dir.path() / "servo.csv");
+  for (auto& line : lines) {
+    const auto at = line.find(",track,");
+    if (at != std::string::npos) line.replace(at, 7, ",following,");
+  }
+  testing::WriteLines(dir.path() / "servo.csv", lines);
+  m = report::ComputeAccuracy(hw::ReadRunRecord(dir.path()), em);
+  EXPECT_DOUBLE_EQ(m.window_from_s, 2.0);
+  EXPECT_EQ(report::WindowText(m), "from 2.00 s: servo began following");
+  EXPECT_GE(m.t_s.front(), 2.0);
+  EXPECT_LT(m.t_s.front(), 2.0 + 2.0 / s.em_rate_hz);
+  report::AccuracyOptions o;
+  o.from_s = 4.0;
+  m = report::ComputeAccuracy(hw::ReadRunRecord(dir.path()), em, o);
+  EXPECT_EQ(report::WindowText(m), "from 4.00 s: --from");
+  EXPECT_GE(m.t_s.front(), 4.0);
+  const auto j = nlohmann::json::parse(report::AccuracyJson(m, {}));
+  EXPECT_DOUBLE_EQ(j["window"]["from_s"].get<double>(), 4.0);
+  EXPECT_EQ(j["window"]["reason"], "--from");
+  // No servo.csv: the whole run.
+  std::filesystem::remove(dir.path() / "servo.csv");
+  m = report::ComputeAccuracy(hw::ReadRunRecord(dir.path()), em);
+  EXPECT_EQ(report::WindowText(m), "whole run: no servo.csv");
 }
 
 TEST(AccuracyReport, PercentileInterpolatesBetweenOrderStatistics) {
