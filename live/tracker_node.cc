@@ -26,11 +26,6 @@ TrackerNode::TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publ
 
 TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double acquired_s,
                                    double arrived_s, const std::function<double()>& now_s) {
-  return Track(volume, acquired_s, arrived_s, now_s);
-}
-
-TrackedVolume TrackerNode::Track(const imaging::Volume& volume, double acquired_s, double arrived_s,
-                                 const std::function<double()>& now_s) {
   TrackedVolume out;
   ++stats_.volumes;
   auto fail = [&](const std::exception& e) {

@@ -91,9 +91,6 @@ class TrackerNode {
   const std::optional<Eigen::Vector3d>& reference_axis() const { return reference_axis_; }
 
  private:
-  TrackedVolume Track(const imaging::Volume& volume, double acquired_s, double arrived_s,
-                      const std::function<double()>& now_s);
-
   TrackerNodeOptions o_;
   link::TargetPublisher* publisher_;
   hw::RunWriter* writer_;
