@@ -48,6 +48,7 @@ int RunOnce(int argc, const char* const* argv, bool parse_only) {
   AddScannerCommand(app);
   AddIngestCommand(app);
   AddReplayCommand(app);
+  AddReconstructCommand(app);
   AddBenchCommands(app);
   AddLiveCommands(app);
   AddReportCommand(app);

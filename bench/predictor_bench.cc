@@ -1,14 +1,20 @@
 // The heartbeat predictor's costs: one EKF measurement update (target ≤ 20 µs) and one
 // 1 kHz evaluation of the exported Fourier motion (target ≤ 1 µs), beside the
-// constant-velocity KF baseline's update in the same process. Binary:
+// constant-velocity KF baseline's update in the same process; the predictor competition's
+// full update (EKF, autoregressive predictor and the three baselines, with scoring and
+// choice; target ≤ 20 µs) beside the EKF alone, on the synthetic trace and on a realistic
+// one (ectopic beats, outliers, drops: re-acquisitions included). Binary:
 // ${CMAKE_RUNTIME_OUTPUT_DIRECTORY}/echoservo_predictor_bench.
 #include <benchmark/benchmark.h>
 
+#include <memory>
 #include <numbers>
 
 #include "control/experiments/synthetic_motion.h"
 #include "estimation/heartbeat_ekf.h"
 #include "estimation/motion_trace.h"
+#include "estimation/predictor_competition.h"
+#include "estimation/realistic_heart_trace.h"
 #include "estimation/slow_trend.h"
 
 namespace {
@@ -55,7 +61,55 @@ void BM_EkfUpdate(benchmark::State& state) {
   o.respiration = kModes[state.range(1)];
   Feed(state, [&] { return HeartbeatEkf(o); });
 }
-BENCHMARK(BM_EkfUpdate)->Args({6, 0})->Args({6, 1})->Args({6, 2})->Args({12, 1});
+BENCHMARK(BM_EkfUpdate)->Args({6, 0})->Args({6, 1})->Args({6, 2})->Args({12, 1})->Args({0, 2});
+
+// Ten minutes of the realistic ectopic class at 25 vol/s (estimation/realistic_heart_trace.h).
+const echoservo::estimation::MotionTrace& RealisticMeasurements() {
+  static const echoservo::estimation::MotionTrace trace = [] {
+    auto o = echoservo::estimation::RealisticHeartClass("ectopic", 1);
+    o.duration_s = 600.0;
+    return echoservo::estimation::GenerateRealisticHeartTrace(o);
+  }();
+  return trace;
+}
+
+// One measurement into the competition (every competitor updated, due predictions scored,
+// the choice made, the next predictions stored) or into the EKF alone, default options;
+// arg 0: the synthetic trace, 1: the realistic one.
+template <class Make>
+void FeedTrace(benchmark::State& state, const echoservo::estimation::MotionTrace& trace,
+               Make make) {
+  auto filter = make();
+  std::size_t i = trace.size();
+  for (auto _ : state) {
+    if (i == trace.size()) {
+      state.PauseTiming();
+      filter = make();
+      for (i = 0; trace.t_s[i] < 5.0; ++i) filter->Update(trace.t_s[i], trace.position_mm[i]);
+      state.ResumeTiming();
+    }
+    filter->Update(trace.t_s[i], trace.position_mm[i]);
+    ++i;
+  }
+}
+
+void BM_CompetitionUpdate(benchmark::State& state) {
+  FeedTrace(state, state.range(0) == 0 ? Measurements() : RealisticMeasurements(),
+            [] { return std::make_unique<echoservo::estimation::PredictorCompetition>(); });
+}
+BENCHMARK(BM_CompetitionUpdate)->Arg(0)->Arg(1);
+
+void BM_EkfAloneUpdate(benchmark::State& state) {
+  FeedTrace(state, state.range(0) == 0 ? Measurements() : RealisticMeasurements(),
+            [] { return std::make_unique<HeartbeatEkf>(); });
+}
+BENCHMARK(BM_EkfAloneUpdate)->Arg(0)->Arg(1);
+
+void BM_ArUpdate(benchmark::State& state) {
+  FeedTrace(state, state.range(0) == 0 ? Measurements() : RealisticMeasurements(),
+            [] { return std::make_unique<echoservo::estimation::ArPredictor>(); });
+}
+BENCHMARK(BM_ArUpdate)->Arg(0)->Arg(1);
 
 // (Re-)initialisation: the first 4 s (100 measurements) into a fresh filter, including
 // the batch rate search and, with automatic harmonics, the harmonic-count choice.

@@ -39,12 +39,16 @@ HeartbeatEkf::HeartbeatEkf(HeartbeatEkfOptions options) : o_(options) {
       std::isfinite(o_.offset_rate_q_mm_s) && o_.offset_rate_q_mm_s >= 0.0 &&
       Positive(o_.rate_q_rad_s) && Positive(o_.phase_q_rad) && Positive(o_.gate_sigma) &&
       o_.max_rejections >= 1 && Positive(o_.max_phase_sd_rad) && std::isfinite(o_.horizon_s) &&
-      o_.horizon_s >= 0.0;
+      o_.horizon_s >= 0.0 && Positive(o_.band_min_hz) && o_.band_max_hz > o_.band_min_hz &&
+      std::isfinite(o_.band_max_hz) && o_.reacquire_nis > 1.0 && std::isfinite(o_.reacquire_nis) &&
+      o_.reacquire_fraction > 0.0 && o_.reacquire_fraction < 1.0 && Positive(o_.reacquire_beats);
   if (!ok) {
     throw std::invalid_argument(
         "heartbeat EKF: harmonics must be in [0, 12] (0: automatic), rates 0 < min < max, and "
-        "every noise, gate and window positive");
+        "every noise, gate and window positive, a rate band 0 < band_min_hz < band_max_hz, "
+        "reacquire_nis > 1, reacquire_fraction in (0, 1) and reacquire_beats > 0");
   }
+  cooldown_s_ = o_.init_window_s;
   if (o_.init_window_s * o_.min_rate_hz < 1.0) {
     throw std::invalid_argument("heartbeat EKF: the initialisation window (" +
                                 std::to_string(o_.init_window_s) +
@@ -137,7 +141,7 @@ void HeartbeatEkf::CheckRespiration() {
   p_ = p;
 }
 
-void HeartbeatEkf::Initialise() {
+void HeartbeatEkf::Initialise(int keep_harmonics) {
   std::vector<double> t;
   std::vector<double> z;
   for (const auto& [ti, zi] : buffer_) {
@@ -159,7 +163,9 @@ void HeartbeatEkf::Initialise() {
   for (std::size_t i = 0; i < t.size(); ++i)
     window.Add(t[i], kTwoPi * rate_hz * (t[i] - t.back()), z[i]);
   ChooseRespiration(window.Evidence());
-  const int count = o_.harmonics > 0 ? o_.harmonics : ChooseHarmonics();
+  const int count = keep_harmonics > 0 ? keep_harmonics
+                    : o_.harmonics > 0 ? o_.harmonics
+                                       : ChooseHarmonics();
   const HarmonicFit fit =
       FitHarmonicsAtRate(t.data(), z.data(), t.size(), t.front(), rate_hz, count, kInitTrendOrder);
   harmonics_ = fit.harmonics;
@@ -202,6 +208,95 @@ void HeartbeatEkf::Initialise() {
   recent_.clear();
   trend_.Reset(harmonics_, o_.init_window_s);
   trend_seen_ = false;
+  // The fitted window's range bounds the predictions until Watch takes the newest window's.
+  window_lo_mm_ = *std::min_element(z.begin(), z.end());
+  window_hi_mm_ = *std::max_element(z.begin(), z.end());
+  nis_mean_ = 0.0;
+  since_init_s_ = 0.0;
+  out_of_band_ = false;
+}
+
+double HeartbeatEkf::WindowPeriod() const {
+  // The window as uniformly sampled (its mean interval), detrended by its mean; the first
+  // autocorrelation peak above a third of the variance at a lag inside the rate band.
+  const std::size_t n = window_.size();
+  if (n < 16) return 0.0;
+  const double dt = (window_.back().first - window_.front().first) / static_cast<double>(n - 1);
+  double mean = 0.0;
+  for (const auto& [t, z] : window_) mean += z;
+  mean /= static_cast<double>(n);
+  auto corr = [&](std::size_t lag) {
+    double c = 0.0;
+    for (std::size_t i = 0; i + lag < n; ++i)
+      c += (window_[i].second - mean) * (window_[i + lag].second - mean);
+    return c / static_cast<double>(n - lag);
+  };
+  const double c0 = corr(0);
+  const auto lo = std::max<std::size_t>(1, static_cast<std::size_t>(1.0 / (band_max_hz() * dt)));
+  const auto hi = std::min(n / 2, static_cast<std::size_t>(1.0 / (band_min_hz() * dt)) + 1);
+  if (!(c0 > 0.0) || lo + 1 >= hi) return 0.0;
+  double prev = corr(lo - 1);
+  double cur = corr(lo);
+  for (std::size_t lag = lo; lag < hi; ++lag) {
+    const double next = corr(lag + 1);
+    if (cur > c0 / 3.0 && cur >= prev && cur >= next) return static_cast<double>(lag) * dt;
+    prev = cur;
+    cur = next;
+  }
+  return 0.0;
+}
+
+void HeartbeatEkf::Watch(double dt_s, double nis, bool out_of_band) {
+  const double rate = std::max(rate_hz(), band_min_hz());
+  since_init_s_ += dt_s;
+  const double alpha = std::min(1.0, dt_s * rate / o_.reacquire_beats);
+  // The fraction of large innovations (ν²/S above reacquire_nis): robust to single
+  // outliers and ectopic beats, which a mean of ν²/S is not.
+  nis_mean_ += alpha * ((nis > o_.reacquire_nis ? 1.0 : 0.0) - nis_mean_);
+  // Large innovations re-acquire after reacquire_beats beats, and no sooner than a cooldown
+  // that doubles with each such re-acquisition (up to 8 windows: irregular rhythms that no
+  // refit helps do not refit on every beat) and returns to one window once a cooldown
+  // passes without one.
+  const bool settled = since_init_s_ * rate >= o_.reacquire_beats && since_init_s_ >= cooldown_s_;
+  bool diverged = settled && nis_mean_ > o_.reacquire_fraction;
+  // The data's own period (autocorrelation over the window) is under 0.7 of the filter's:
+  // a sub-harmonic lock (after a jump the filter may settle at
+  // half the new rate, the second harmonic carrying the beat, while the adaptive noise
+  // keeps ν²/S small) or a lost rate. Checked once per cooldown (a few µs).
+  if (settled && !diverged) {
+    const double period_s = WindowPeriod();
+    diverged = period_s > 0.0 && period_s * rate_hz() < 0.7;
+  }
+  if (settled && !diverged) cooldown_s_ = o_.init_window_s;
+  // A state far outside what the window shows (an ill-conditioned fit or a run-away offset
+  // rate) has diverged too: the model's excursion or a second's drift beyond 3× the
+  // window's range (+1 mm).
+  double lo = window_.front().second;
+  double hi = lo;
+  for (const auto& [t, z] : window_) {
+    lo = std::min(lo, z);
+    hi = std::max(hi, z);
+  }
+  window_lo_mm_ = lo;
+  window_hi_mm_ = hi;
+  if (!diverged) {
+    const double bound = 3.0 * (hi - lo) + 1.0;
+    double excursion = std::abs(x_(0) - 0.5 * (lo + hi));
+    for (int i = FirstCoefficient(); i < PhaseIndex(); ++i) excursion += std::abs(x_(i));
+    const double drift = respiration_ ? std::abs(x_(1)) : 0.0;
+    diverged = !(excursion <= bound && drift <= bound);
+  }
+  // The clamp keeps ω in the band at once; a refit waits for the cooldown too.
+  if (!((out_of_band && since_init_s_ >= cooldown_s_) || diverged)) return;
+  // Re-acquire on the newest window when it spans the initialisation window (else the
+  // clamped rate carries on until it does).
+  if (window_.size() < MinInitSamples(o_) ||
+      window_.back().first - window_.front().first < o_.init_window_s)
+    return;
+  buffer_.assign(window_.begin(), window_.end());
+  ++reacquisitions_;
+  cooldown_s_ = std::min(2.0 * cooldown_s_, 8.0 * o_.init_window_s);
+  Initialise(harmonics_);
 }
 
 void HeartbeatEkf::TimeUpdate(double dt) {
@@ -277,6 +372,9 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
   }
   any_ = true;
   last_mm_ = z;
+  window_.emplace_back(t_s, z);
+  while (window_.size() > 2 && window_.back().first - window_[1].first >= o_.init_window_s)
+    window_.pop_front();
   if (!initialised_) {
     buffer_.emplace_back(t_s, z);
     // Sparse data (many frames lost) may span the window with too few samples to fit (and
@@ -292,6 +390,7 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
     return UpdateResult::kInitialised;
   }
 
+  const double dt_s = t_s - t_;
   const UpdateResult result = Correct(t_s, z);
   if (result == UpdateResult::kLost) {  // coasted too long: phase unknown
     initialised_ = false;
@@ -307,6 +406,7 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
       recent_.clear();
       return UpdateResult::kLost;
     }
+    Watch(dt_s, last_nis_, out_of_band_);
     return result;
   }
   consecutive_rejections_ = 0;
@@ -316,6 +416,7 @@ UpdateResult HeartbeatEkf::Process(double t_s, double z) {
     trend_.Add(t_s, x_(PhaseIndex()), z);
     if (trend_.span_s() >= o_.init_window_s) CheckRespiration();
   }
+  Watch(dt_s, last_nis_, out_of_band_);
   return result;
 }
 
@@ -328,6 +429,8 @@ UpdateResult HeartbeatEkf::Correct(double t_s, double z) {
   const Vector ph = p_ * h;
   const double s = h.dot(ph) + noise_mm_ * noise_mm_;
   const double nu = z - predicted;
+  last_nis_ = nu * nu / s;
+  out_of_band_ = false;
   if (nu * nu > o_.gate_sigma * o_.gate_sigma * s) return UpdateResult::kRejected;
   if (o_.noise_mm == 0.0) {
     // Innovation-based measurement noise: E[ν²] = HPHᵀ + R (exponential average).
@@ -338,14 +441,31 @@ UpdateResult HeartbeatEkf::Correct(double t_s, double z) {
   x_ += k * nu;
   p_.noalias() -= k * ph.transpose();
   p_ = 0.5 * (p_ + p_.transpose()).eval();
+  // The heart rate stays in its band: clamp ω (an update past the edge is a symptom of a
+  // lost phase; the caller re-acquires).
+  const int om = PhaseIndex() + 1;
+  const double lo = kTwoPi * band_min_hz();
+  const double hi = kTwoPi * band_max_hz();
+  if (!(x_(om) >= lo && x_(om) <= hi)) {
+    x_(om) = std::clamp(std::isfinite(x_(om)) ? x_(om) : lo, lo, hi);
+    out_of_band_ = true;
+  }
   return UpdateResult::kAccepted;
 }
 
 double HeartbeatEkf::Predict(double t_s) const {
   if (!initialised_) return last_mm_;
   const double dt = t_s - t_;
-  const double z = ShapeAt(x_(PhaseIndex()) + x_(PhaseIndex() + 1) * dt, nullptr);
-  return respiration_ ? z + x_(1) * dt : z;
+  double z = ShapeAt(x_(PhaseIndex()) + x_(PhaseIndex() + 1) * dt, nullptr);
+  if (respiration_) z += x_(1) * dt;
+  // Physically plausible: within the newest window's range ± half of it (+0.5 mm), whatever
+  // the state (a refit on a window the model does not fit may be ill-conditioned until the
+  // next measurement re-acquires).
+  if (window_hi_mm_ >= window_lo_mm_) {
+    const double margin = 0.5 * (window_hi_mm_ - window_lo_mm_) + 0.5;
+    z = std::clamp(z, window_lo_mm_ - margin, window_hi_mm_ + margin);
+  }
+  return z;
 }
 
 FourierMotion HeartbeatEkf::Motion() const {

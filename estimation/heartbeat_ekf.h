@@ -6,12 +6,19 @@
 // FourierMotion the 1 kHz servo evaluates, valid until the newest acquisition + horizon_s.
 // Buffers until init_window_s of data is held (predicting the newest measurement), then
 // filters; gates outliers (gate_sigma) and re-initialises when lost or after a long gap.
+// The heart rate is bounded to a physiological band (default 30–220 bpm, widened to the
+// search range when that is wider) and re-acquired from the newest window of data (a batch
+// spectral fit) when the filter's rate reaches the band's edge, most innovations stay
+// large, the window's own period (autocorrelation) is under 0.7 of the filter's (a
+// sub-harmonic lock), or the state leaves the window's range; with a cooldown between
+// re-acquisitions. Predict is bounded to the newest window's range ± half of it.
 // Errors: the constructor throws std::invalid_argument for inconsistent options; Process
 // throws it for a NaN or infinite input or a time not after the previous one.
 // Details: docs/predictor.md#the-heartbeat-ekf-estimationheartbeat_ekfh
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cstddef>
 #include <deque>
 #include <utility>
@@ -46,6 +53,17 @@ struct HeartbeatEkfOptions {
   int max_rejections = 5;
   double max_phase_sd_rad = 0.8;
   double horizon_s = 0.5;  // the exported model's validity past the newest measurement
+  // The rate band the filter's ω is clamped to (Hz; widened to [min_rate_hz, max_rate_hz]
+  // when that is wider, e.g. for breathing traces), and re-acquisition: when ω reaches the
+  // band's edge, or the fraction of measurements whose normalised innovation squared ν²/S
+  // exceeds reacquire_nis (2σ: 4.6 % for a consistent filter), averaged over
+  // reacquire_beats beats, exceeds reacquire_fraction, the rate, phase and shape are
+  // refitted on the newest init_window_s of measurements (same harmonic count).
+  double band_min_hz = 0.5;           // 30 bpm
+  double band_max_hz = 220.0 / 60.0;  // 220 bpm
+  double reacquire_nis = 4.0;
+  double reacquire_fraction = 0.5;
+  double reacquire_beats = 2.0;
 };
 
 enum class UpdateResult { kBuffering, kInitialised, kAccepted, kRejected, kLost };
@@ -81,9 +99,23 @@ class HeartbeatEkf final : public MotionPredictor {
   std::size_t accepted() const { return accepted_; }
   std::size_t rejected() const { return rejected_; }
   std::size_t initialisations() const { return initialisations_; }
+  // Re-acquisitions (docs/predictor.md#heart-rate-band-and-re-acquisition; they are part
+  // of initialisations()).
+  std::size_t reacquisitions() const { return reacquisitions_; }
+  // The band ω is held in (Hz): the physiological band widened to the search range.
+  double band_min_hz() const { return std::min(o_.band_min_hz, o_.min_rate_hz); }
+  double band_max_hz() const { return std::max(o_.band_max_hz, o_.max_rate_hz); }
+  // The fraction of innovations with ν²/S > reacquire_nis over ~reacquire_beats beats
+  // (≈ 0.05 when the filter is consistent).
+  double large_innovation_fraction() const { return nis_mean_; }
 
  private:
-  void Initialise();
+  // `keep_harmonics` > 0: refit at that count (re-acquisition) instead of choosing one.
+  void Initialise(int keep_harmonics = 0);
+  // After an accepted or rejected measurement: the NIS average and the re-acquisition test.
+  void Watch(double dt_s, double nis, bool out_of_band);
+  // The newest window's period (s) by autocorrelation within the rate band; 0: none found.
+  double WindowPeriod() const;
   int ChooseHarmonics() const;
   // Sets respiration_ and its intensity from a window's slow-trend evidence.
   void ChooseRespiration(const TrendEvidence& evidence);
@@ -114,6 +146,15 @@ class HeartbeatEkf final : public MotionPredictor {
   std::size_t accepted_ = 0;
   std::size_t rejected_ = 0;
   std::size_t initialisations_ = 0;
+  std::size_t reacquisitions_ = 0;
+  double nis_mean_ = 0.0;  // the large-innovation fraction
+  double since_init_s_ = 0.0;
+  double window_lo_mm_ = 1.0;  // the newest window's range (Predict's bound); lo > hi: none
+  double window_hi_mm_ = 0.0;
+  double cooldown_s_ = 0.0;   // re-acquisition on large innovations waits this long (s)
+  bool out_of_band_ = false;  // set by Correct when ω was clamped
+  double last_nis_ = 1.0;     // of the newest Correct
+  std::deque<std::pair<double, double>> window_;  // the newest init_window_s of measurements
   std::deque<std::pair<double, double>> buffer_;  // (t, z) while (re)initialising
   std::deque<std::pair<double, double>> recent_;  // rejected run, for re-initialisation
   SlowTrendWindow trend_;    // accepted measurements since the last respiration check

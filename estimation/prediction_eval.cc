@@ -82,24 +82,27 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
   run.measurements = measured.size();
   run.gaps = FindGaps(measured).size();
   run.measurement_rate_hz = 1.0 / MedianInterval(measured);
-  HeartbeatEkf ekf(o.ekf);
-  ConstantVelocityKfOptions cvo;
-  cvo.accel_psd_mm2_s3 = CvAccelPsd(measured, o.ekf.init_window_s);
-  cvo.noise_mm = o.ekf.noise_mm > 0.0 ? o.ekf.noise_mm : InitialNoise(measured, o.ekf);
-  run.cv_accel_psd_mm2_s3 = cvo.accel_psd_mm2_s3;
-  std::vector<std::unique_ptr<MotionPredictor>> baselines;
-  baselines.push_back(std::make_unique<ZeroOrderHold>());
-  baselines.push_back(std::make_unique<LinearExtrapolation>());
-  baselines.push_back(std::make_unique<ConstantVelocityKf>(cvo));
-  Accumulator ekf_acc;
-  std::vector<Accumulator> base_acc(baselines.size());
+  PredictorCompetitionOptions co;
+  co.latency_s = o.latency_s;
+  co.window_s = o.competition_window_s;
+  co.combination = o.combination;
+  co.ekf = o.ekf;
+  co.ar = o.ar;
+  co.cv.accel_psd_mm2_s3 = CvAccelPsd(measured, o.ekf.init_window_s);
+  co.cv.noise_mm = o.ekf.noise_mm > 0.0 ? o.ekf.noise_mm : InitialNoise(measured, o.ekf);
+  run.cv_accel_psd_mm2_s3 = co.cv.accel_psd_mm2_s3;
+  PredictorCompetition competition(co);
+  const HeartbeatEkf& ekf = competition.ekf();
+  constexpr int kCount = PredictorCompetition::kCount;
+  Accumulator shipped_acc;
+  std::vector<Accumulator> acc(kCount);
+  std::vector<std::size_t> chosen(kCount, 0);
   const TraceInterpolator truth_at(reference);
   bool scoring = false;
   for (std::size_t i = 0; i < measured.size(); ++i) {
     const double t = measured.t_s[i];
     const double z = measured.position_mm[i];
-    ekf.Update(t, z);
-    for (auto& b : baselines) b->Update(t, z);
+    competition.Update(t, z);
     if (!scoring && ekf.initialised()) {
       scoring = true;
       run.scored_from_s = t;
@@ -112,21 +115,36 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
       ++run.unscored_in_gaps;
       continue;
     }
-    const double e = ekf.Predict(target_t) - truth;
-    ekf_acc.Add(e);
-    if (o.keep_errors) run.ekf_errors_mm.push_back(e);
-    for (std::size_t b = 0; b < baselines.size(); ++b)
-      base_acc[b].Add(baselines[b]->Predict(target_t) - truth);
+    const double e = competition.Predict(target_t) - truth;
+    shipped_acc.Add(e);
+    ++chosen[static_cast<std::size_t>(competition.chosen())];
+    if (o.keep_errors) run.shipped_errors_mm.push_back(e);
+    for (int c = 0; c < kCount; ++c) {
+      const double ec = competition.competitor(c).Predict(target_t) - truth;
+      acc[static_cast<std::size_t>(c)].Add(ec);
+      if (o.keep_errors && c == PredictorCompetition::kEkf) run.ekf_errors_mm.push_back(ec);
+    }
   }
-  if (ekf_acc.n == 0) {
+  if (shipped_acc.n == 0) {
     throw std::invalid_argument(trace.source +
                                 ": nothing to score: no measurement after the predictor's "
                                 "initialisation has a reference `latency` later");
   }
-  run.scored = ekf_acc.n;
-  run.ekf = ekf_acc.Score(ekf.name());
-  for (std::size_t b = 0; b < baselines.size(); ++b)
-    run.baselines.push_back(base_acc[b].Score(baselines[b]->name()));
+  run.scored = shipped_acc.n;
+  run.shipped = shipped_acc.Score(competition.name());
+  for (int c = 0; c < kCount; ++c) {
+    const auto u = static_cast<std::size_t>(c);
+    const std::string& name = competition.competitor(c).name();
+    run.competitors.push_back(acc[u].Score(name));
+    run.chosen_fraction.emplace_back(
+        name, static_cast<double>(chosen[u]) / static_cast<double>(shipped_acc.n));
+    if (c >= PredictorCompetition::kZoh) run.baselines.push_back(run.competitors.back());
+  }
+  run.ekf = run.competitors[PredictorCompetition::kEkf];
+  run.switches = competition.switches();
+  run.reacquisitions = ekf.reacquisitions();
+  run.ar_order = competition.ar().order();
+  run.ar_horizon_steps = competition.ar().horizon_steps();
   run.harmonics = ekf.harmonics();
   run.respiration = ekf.respiration();
   run.offset_rate_q_mm_s = ekf.offset_rate_q_mm_s();

@@ -6,14 +6,19 @@
 // trace (or the `truth` trace, e.g. a noise-free column) interpolated there; prediction
 // times past the end of the trace or inside a gap have no reference and are not scored.
 // All predictors see the same measurements and are scored on the same instants: those
-// after the heartbeat EKF has initialised. Units: s, mm.
+// after the heartbeat EKF has initialised. Predictors: the online competition
+// (estimation/predictor_competition.h), i.e. what the live tracker ships, and each of its
+// competitors (heartbeat EKF, autoregressive, zero-order hold, linear extrapolation,
+// constant-velocity KF) alone. Units: s, mm.
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "estimation/heartbeat_ekf.h"
 #include "estimation/motion_trace.h"
+#include "estimation/predictor_competition.h"
 
 namespace echoservo::estimation {
 
@@ -30,6 +35,10 @@ struct PredictionRunOptions {
   HeartbeatEkfOptions ekf;
   const MotionTrace* truth = nullptr;  // reference for the errors; null: the trace itself
   bool keep_errors = false;            // fill PredictionRun::ekf_errors_mm
+  // The competition's choice rule (what ships): pick the best, or a weighted mix.
+  Combination combination = Combination::kPickBest;
+  double competition_window_s = 8.0;
+  ArPredictorOptions ar;  // horizon_s is set to latency_s
 };
 
 struct PredictionRun {
@@ -39,9 +48,18 @@ struct PredictionRun {
   std::size_t gaps = 0;              // gaps in the measurements
   double scored_from_s = 0.0;        // first scored measurement (EKF initialised)
   double measurement_rate_hz = 0.0;  // median
-  PredictionScore ekf;
+  PredictionScore shipped;           // the competition's output: what the live tracker ships
+  PredictionScore ekf;               // the heartbeat EKF alone
   std::vector<PredictionScore>
       baselines;  // zero_order_hold, linear_extrapolation, constant_velocity_kf
+  // Every competitor alone (heartbeat_ekf, autoregressive, then the baselines), and the
+  // fraction of scored measurements after which each drove the shipped output.
+  std::vector<PredictionScore> competitors;
+  std::vector<std::pair<std::string, double>> chosen_fraction;
+  std::size_t switches = 0;        // changes of the competition's choice
+  std::size_t reacquisitions = 0;  // the EKF's rate re-acquisitions
+  int ar_order = 0;
+  int ar_horizon_steps = 0;
   // The EKF at the end of the trace.
   int harmonics = 0;
   bool respiration = false;         // the offset-rate state carried
@@ -52,7 +70,8 @@ struct PredictionRun {
   std::size_t rejected = 0;
   std::size_t initialisations = 0;
   double cv_accel_psd_mm2_s3 = 0.0;
-  std::vector<double> ekf_errors_mm;  // with keep_errors
+  std::vector<double> ekf_errors_mm;      // with keep_errors: the EKF alone
+  std::vector<double> shipped_errors_mm;  // with keep_errors: the competition's output
 };
 
 // Throws std::invalid_argument for a bad trace or options (naming where and why), and

@@ -136,6 +136,7 @@ Eigen::AlignedBox3d Volume::BoundingBoxMm() const {
 void Volume::set_image_to_probe(const Eigen::Isometry3d& image_to_probe) {
   RequireRigid(image_to_probe, "image_to_probe");
   image_to_probe_ = image_to_probe;
+  has_image_to_probe_ = true;
 }
 
 void Volume::set_probe_to_reference(const Eigen::Isometry3d& probe_to_reference) {

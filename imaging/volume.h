@@ -84,7 +84,11 @@ class Volume {
 
   // Pose of the volume. Setters throw std::invalid_argument naming the field when the
   // transform is not finite or its linear part is not a rotation (within 1e-6).
+  // has_image_to_probe(): whether the image-to-probe transform is known (the scanning geometry:
+  // where the beams come from). False until set_image_to_probe; image_to_probe() is then the
+  // identity by convention only (e.g. a volume reconstructed from many probe poses has none).
   const Eigen::Isometry3d& image_to_probe() const { return image_to_probe_; }
+  bool has_image_to_probe() const { return has_image_to_probe_; }
   const Eigen::Isometry3d& probe_to_reference() const { return probe_to_reference_; }
   void set_image_to_probe(const Eigen::Isometry3d& image_to_probe);
   void set_probe_to_reference(const Eigen::Isometry3d& probe_to_reference);
@@ -117,6 +121,7 @@ class Volume {
   std::vector<std::uint8_t> voxels_;
 
   Eigen::Isometry3d image_to_probe_ = Eigen::Isometry3d::Identity();
+  bool has_image_to_probe_ = false;
   Eigen::Isometry3d probe_to_reference_ = Eigen::Isometry3d::Identity();
   double timestamp_s_ = 0.0;
   std::int64_t frame_index_ = 0;

@@ -178,6 +178,8 @@ DemoResult RunDemo(const DemoOptions& o) {
                          {o.rate_hz, o.delay_min_s, o.delay_max_s, o.duration_s, o.seed});
 
   // Tracker: the newest delivered volume → detector → EKF → link.
+  std::atomic<std::uint64_t> tracked_volumes{0}, target_found{0}, contact_true{0},
+      contact_reported{0}, contact_true_reported{0}, contact_reported_apart{0};
   std::thread tracker_thread([&] {
     while (true) {
       std::optional<Delivery> d = scanner.Next(0.05);
@@ -189,6 +191,18 @@ DemoResult RunDemo(const DemoOptions& o) {
       const TrackedVolume r =
           tracker.Process(d->volume, d->acquired_s, arrived, [&] { return clock.Now(); });
       if (r.published) arrivals.Add(r.sequence, arrived);
+      if (r.error.empty()) {
+        ++tracked_volumes;
+        const tracking::CatheterDetection& det = r.detection;
+        if (det.found && det.target_found) ++target_found;
+        const double past_mm = scene.TipPastSurfaceMm(d->acquired_s);
+        const bool touching = past_mm >= 0.0;
+        const bool reported = det.found && det.target_found && det.contact;
+        contact_true += touching;
+        contact_reported += reported;
+        contact_true_reported += touching && reported;
+        contact_reported_apart += reported && past_mm < -0.5;
+      }
       if (recorder) recorder->Submit(std::move(d->volume));
       if (!r.error.empty()) log("tracker: " + r.error);
     }
@@ -280,6 +294,13 @@ DemoResult RunDemo(const DemoOptions& o) {
   result.limit_faults = ss.limit_interventions;
   result.limit_violations = ss.limit_violations;
   result.resumes = ss.resumes;
+  result.stale_events = servo.follower().counters().stale_events;
+  result.tracked_volumes = tracked_volumes;
+  result.target_found = target_found;
+  result.contact_true = contact_true;
+  result.contact_reported = contact_reported;
+  result.contact_true_reported = contact_true_reported;
+  result.contact_reported_apart = contact_reported_apart;
   result.em_samples = em.samples();
   result.em_dropouts = em.dropouts();
   result.estimates_accepted = ss.estimates_accepted;

@@ -26,8 +26,9 @@ struct DemoOptions {
   double delay_max_s = 0.10;
   double heart_rate_bpm = 60.0;  // target: the mitral annulus trajectory, [30, 180]
   double target_p2p_mm = 10.0;   // its peak-to-peak excursion, (0, 20]
-  double standoff_mm =
-      8.0;  // [0, 30]; the detector needs ≥ 4 mm of gap to see the target, plus margin
+  // [0, 30]; down to contact (0: the tip held at the tissue's surface; overshooting, it
+  // indents the tissue: live/sim_scene.h).
+  double standoff_mm = 8.0;
   double metrics_start_s = 3.0;
   std::uint64_t seed = 1;
   std::filesystem::path out_dir;  // the RUN directory (docs/report.md); empty: not written
@@ -79,6 +80,15 @@ struct DemoResult {
   std::uint64_t limit_faults = 0;      // limiter interventions counted as faults (clamps)
   std::uint64_t limit_violations = 0;  // cycles commanding outside a limit: must be 0
   std::uint64_t resumes = 0;           // following resumed after a watchdog retraction
+  std::uint64_t stale_events = 0;      // the follower found its estimate stale (hold)
+  // Close approach: volumes processed by the tracker; of them, those whose target was found,
+  // those acquired with the tip at or past the tissue's surface (truth: touching or
+  // indenting it), those the detector reported as contact, and of the touching ones, those
+  // reported as contact; and those reported as contact with the tip more than 0.5 mm short
+  // of the surface (the contact tolerance is 0.3 mm, tracking/axis_profile.h).
+  std::uint64_t tracked_volumes = 0, target_found = 0;
+  std::uint64_t contact_true = 0, contact_reported = 0, contact_true_reported = 0;
+  std::uint64_t contact_reported_apart = 0;
   int ekf_harmonics = 0;
   double ekf_rate_hz = 0.0;
 };

@@ -11,10 +11,10 @@
 namespace echoservo::live {
 namespace {
 
-// The scanner's catheter advance at the plant's tip position 0: the tip then rests
-// 10.5 mm short of the annulus's near face (5.5–15.5 mm as it moves ±5 mm), and following
-// it at the default standoff keeps the plant's tip within its travel.
-constexpr double kAdvanceAtZeroMm = 3.0;
+// The scanner's catheter advance at the plant's tip position 0: the tip then rests 9 mm
+// short of the annulus's near face (4–14 mm as it moves ±5 mm), so that following it at
+// any standoff from 0 (contact) to 19 mm keeps the plant's tip within its ±15 mm travel.
+constexpr double kAdvanceAtZeroMm = 4.5;
 
 }  // namespace
 
@@ -48,6 +48,11 @@ SimScene::SimScene(const SimSceneOptions& o) : o_(o) {
     throw std::logic_error("SimScene: the scene's target is not visible");
   target0_mm_ = first.truth->target_mm;
   d0_mm_ = target_motion_->Evaluate(0.0).position_mm;
+  // The scanner's image frame is the world's scaled by depth_scale (uniformly).
+  const Eigen::Vector3d base_image = scanner_->WorldToImage(base_to_world_.translation());
+  face0_mm_ = (target0_mm_ - base_image).norm() / scanner_->depth_scale();
+  if (!(face0_mm_ > tip_at_zero_mm_))
+    throw std::logic_error("SimScene: the tissue does not lie ahead of the tip");
 
   em_options_.image_to_em = Eigen::Translation3d(120.0, -35.0, 210.0) *
                             Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized());
@@ -87,6 +92,11 @@ Eigen::Vector3d SimScene::TipImage(double plant_tip_mm) const {
 
 Eigen::Vector3d SimScene::TargetImage(double t_s) const {
   return target0_mm_ + (target_motion_->Evaluate(t_s).position_mm - d0_mm_) * displacement_image_;
+}
+
+double SimScene::TipPastSurfaceMm(double t_s) const {
+  const double face = face0_mm_ + target_motion_->Evaluate(t_s).position_mm - d0_mm_;
+  return tip_at_zero_mm_ + PlantTipAt(t_s) - face;
 }
 
 Eigen::Vector3d SimScene::DesiredTip(double t_s) const {

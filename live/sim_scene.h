@@ -4,6 +4,12 @@
 // side reports (SetPlantTip) — that is what closes the loop —, and the ground truth the
 // figures need, in the image frame: the true tip for a plant tip position, the target, and
 // where the tip should be (the target less the standoff along the catheter axis).
+// Contact: the tissue is compliant and the tip indents it locally. The scanner renders the
+// tissue moving by its own motion, undeformed, so a tip pressed into it shows as the wire
+// within the tissue past its surface (TipPastSurfaceMm, the indentation's depth), while the
+// surface around the tip stays where the tissue's motion puts it; the target (TargetImage,
+// and the scanner's per-volume truth: where the axis meets that surface) and DesiredTip
+// are that surface's, so pressing into the tissue counts as tip error.
 // Units: mm, s (pipeline clock), image frame.
 #pragma once
 
@@ -53,6 +59,9 @@ class SimScene {
   Eigen::Vector3d TipImage(double plant_tip_mm) const;
   Eigen::Vector3d TargetImage(double t_s) const;
   Eigen::Vector3d DesiredTip(double t_s) const;
+  // How far the tip lies past the tissue's surface along the axis at t_s (world mm; > 0: the
+  // tip indents the tissue, < 0: the gap ahead of it).
+  double TipPastSurfaceMm(double t_s) const;
   const Eigen::Vector3d& axis_image() const { return axis_image_; }
 
   // The simulated EM tracker on the tip: its own frame (image_to_em) and clock offset.
@@ -71,6 +80,8 @@ class SimScene {
   Eigen::Vector3d displacement_image_ = Eigen::Vector3d::UnitZ();
   Eigen::Vector3d target0_mm_ = Eigen::Vector3d::Zero();
   double d0_mm_ = 0.0;
+  // The tissue's near face on the axis at displacement d0_mm_, from the base (world mm).
+  double face0_mm_ = 0.0;
   hw::SimEmTrackerOptions em_options_;
 };
 

@@ -15,13 +15,20 @@ estimation::HeartbeatEkfOptions TrackerNodeOptions::DefaultEkfOptions() {
   return o;
 }
 
+estimation::PredictorCompetitionOptions TrackerNodeOptions::CompetitionOptions() const {
+  estimation::PredictorCompetitionOptions c;
+  c.ekf = ekf;
+  c.latency_s = prediction_latency_s;
+  return c;
+}
+
 TrackerNode::TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher,
                          hw::RunWriter* writer)
     : o_(std::move(options)),
       publisher_(publisher),
       writer_(writer),
       detector_(o_.detector),
-      ekf_(o_.ekf),
+      competition_(o_.CompetitionOptions()),
       significance_(o_.significance) {}
 
 TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double acquired_s,
@@ -51,19 +58,20 @@ TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double acquire
   const bool hold = o_.predictor == TargetPredictor::kZeroOrderHold;
   try {
     if (!hold) {
-      ekf_.Process(acquired_s, s_target);
+      competition_.Update(acquired_s, s_target);
       significance_.Add(acquired_s, s_target);
       significance_.Evaluate();
     }
   } catch (const std::exception& e) {  // a measurement out of order or non-finite
     return fail(e);
   }
-  // The EKF's heartbeat only when the trace shows one; else hold the newest measurement.
+  // The competition's motion only when the trace shows a heartbeat; else hold the newest
+  // measurement.
   const bool heartbeat = !hold && significance_.evidence().significant;
   out.measured = true;
   ++stats_.measured;
   out.published_s = std::max(arrived_s, now_s());
-  if ((hold || ekf_.initialised()) && publisher_) {
+  if ((hold || competition_.ekf().initialised()) && publisher_) {
     link::TargetEstimateSample s;
     s.sequence_number = ++sequence_;
     s.acquisition_time_s = acquired_s + o_.link_offset_s;
@@ -77,7 +85,7 @@ TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double acquire
       s.motion.offset_mm = s_target;
       s.motion.valid_until_s = acquired_s + o_.ekf.horizon_s;
     } else {
-      s.motion = ekf_.Motion();
+      s.motion = competition_.Motion();
     }
     s.motion.t0_s += o_.link_offset_s;
     s.motion.valid_until_s += o_.link_offset_s;

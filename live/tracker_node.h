@@ -1,6 +1,7 @@
 // The tracker node of the live pipeline: one volume in → catheter and target detected
 // (tracking/radon_detector.h, tracking mode) → the target's axis coordinate into the
-// heartbeat EKF (estimation/heartbeat_ekf.h) → the predicted motion published as a target
+// predictor competition (estimation/predictor_competition.h: heartbeat EKF, autoregressive
+// predictor, baselines; the best recent one ships) → the predicted motion published as a target
 // estimate on the DDS link (link/dds_link.h) → a row in the RUN directory
 // (hw/io/run_record.h). `echoservo track` and `echoservo demo` drive the same node.
 //
@@ -19,6 +20,7 @@
 
 #include "estimation/heartbeat_ekf.h"
 #include "estimation/heartbeat_significance.h"
+#include "estimation/predictor_competition.h"
 #include "imaging/volume.h"
 #include "link/dds_link.h"
 #include "tracking/radon_detector.h"
@@ -29,9 +31,11 @@ class RunWriter;
 
 namespace echoservo::live {
 
-// What the node publishes as the target's motion: the heartbeat EKF's prediction, or the
-// zero-order hold of the newest measurement (the baseline: a constant model, no
-// prediction through the delay). With kHeartbeatEkf, the EKF's prediction goes out only
+// What the node publishes as the target's motion: the predictor competition's (the heartbeat
+// EKF's Fourier model when it is the best recent predictor, else the chosen predictor's
+// forward prediction as a line), or the zero-order hold of the newest measurement (the
+// baseline: a constant model, no prediction through the delay). With kHeartbeatEkf, the
+// prediction goes out only
 // while the heartbeat significance test (estimation/heartbeat_significance.h) passes on the
 // measured trace; otherwise the zero-order hold goes out with confidence 0 (no heartbeat is
 // invented on a static or non-periodic target) and heartbeat().reason says why.
@@ -46,9 +50,13 @@ struct TrackerNodeOptions {
   // phantom or bench target the servo should still follow) instead of at confidence 0.
   bool follow_static_target = false;
   double link_offset_s = 0.0;  // link time − node time
+  // The horizon the competitors are scored at (s): the imaging delay plus publication.
+  double prediction_latency_s = 0.1;
 
   // The live defaults: a 2 s initial window, 8 harmonics.
   static estimation::HeartbeatEkfOptions DefaultEkfOptions();
+  // The competition's options from these (EKF options, latency).
+  estimation::PredictorCompetitionOptions CompetitionOptions() const;
 };
 
 // What the node did with one volume.
@@ -83,7 +91,9 @@ class TrackerNode {
                         const std::function<double()>& now_s);
 
   const TrackerStats& stats() const { return stats_; }
-  const estimation::HeartbeatEkf& ekf() const { return ekf_; }
+  const estimation::HeartbeatEkf& ekf() const { return competition_.ekf(); }
+  // The competition behind the published motion: chosen predictor, recent errors.
+  const estimation::PredictorCompetition& competition() const { return competition_; }
   // The significance test on the newest measurements: whether a heartbeat is published, and
   // why (not).
   const estimation::HeartbeatEvidence& heartbeat() const { return significance_.evidence(); }
@@ -95,7 +105,7 @@ class TrackerNode {
   link::TargetPublisher* publisher_;
   hw::RunWriter* writer_;
   tracking::RadonDetector detector_;
-  estimation::HeartbeatEkf ekf_;
+  estimation::PredictorCompetition competition_;
   estimation::HeartbeatSignificance significance_;
   std::optional<Eigen::Vector3d> reference_axis_;
   std::uint64_t sequence_ = 0;

@@ -13,6 +13,10 @@ and position columns in mm. Usage, from the repository root:
 * respiration/201205101522-UAC-1-N-138-6.csv (";"-separated, decimal commas, timestamp
   in ms, last row a 0;0;0;0;0 sentinel): the sentinel is dropped and the timestamp becomes
   t in s from the first row; columns x, y, z in mm. Written as respiration/UAC_138.csv.
+* respiration/201205101519-LAC-1-T-222-6.csv and 201205181211-UCC-1-N-320-6.csv: the
+  same format and conversion, written as respiration/LAC_222.csv and UCC_320.csv. A row
+  whose timestamp is not after the previous row's is dropped and reported (UCC_320 has
+  one: frame 18440 stamped 614.67 ms between 307233 and 307450 ms).
 Only the Python standard library is used.
 """
 import csv
@@ -48,6 +52,10 @@ def convert_respiration(src, dst):
             vals = [float(v.replace(",", ".")) for v in r]
             if all(v == 0.0 for v in vals):  # end-of-recording sentinel
                 continue
+            if out and vals[1] <= out[-1][1]:  # a corrupt timestamp (UCC_320: one row)
+                print(f"{src}: frame {vals[0]:g}: timestamp {vals[1]:g} ms is not after "
+                      f"{out[-1][1]:g} ms; row dropped")
+                continue
             out.append(vals)
     t0 = out[0][1]
     with open(dst, "w", newline="") as f:
@@ -68,6 +76,11 @@ def main():
     n = convert_respiration(os.path.join(shared, "respiration", "201205101522-UAC-1-N-138-6.csv"),
                             os.path.join(data, "respiration", "UAC_138.csv"))
     print(f"respiration/UAC_138.csv: {n} samples")
+    for src, dst in (("201205101519-LAC-1-T-222-6.csv", "LAC_222.csv"),
+                     ("201205181211-UCC-1-N-320-6.csv", "UCC_320.csv")):
+        n = convert_respiration(os.path.join(shared, "respiration", src),
+                                os.path.join(data, "respiration", dst))
+        print(f"respiration/{dst}: {n} samples")
 
 
 if __name__ == "__main__":

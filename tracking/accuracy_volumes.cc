@@ -9,6 +9,7 @@
 #include "imaging/io/volume_io.h"
 #include "imaging/sim/catheter_scene.h"
 #include "imaging/sim/simulated_scanner.h"
+#include "tracking/independent_volumes.h"
 
 namespace echoservo::tracking {
 namespace {
@@ -148,6 +149,43 @@ SimulatedScannerOptions SceneOptions(const std::string& name, int index, std::mt
   return o;
 }
 
+// Independent-generator classes (tracking/independent_volumes.h): "beam_AA" (angle AA° to the
+// beam, the volume knows its image-to-probe pose), "beam_AA_unknown" (it does not),
+// "indep_free" (no catheter, unknown beams).
+bool IsIndependentClass(const std::string& name) {
+  return name.rfind("beam_", 0) == 0 || name == "indep_free";
+}
+
+AccuracyVolume MakeIndependentAccuracyVolume(const VolumeClass& cls, int index, std::uint64_t seed,
+                                             bool next_frame) {
+  std::mt19937_64 rng(MixSeed(seed, cls.name, index));
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  IndependentVolumeOptions o;
+  o.size_voxels = 80;
+  o.catheter = cls.catheter;
+  o.catheter_angle_deg = cls.catheter ? std::stod(cls.name.substr(5, 2)) : 40.0;
+  o.store_image_to_probe = cls.catheter && cls.name.find("_unknown") == std::string::npos;
+  o.catheter_azimuth_deg = 360 * u(rng);
+  o.tip_offset_mm = Eigen::Vector3d(-3 + 6 * u(rng), -3 + 6 * u(rng), -3 + 6 * u(rng));
+  o.seed = rng();
+  IndependentVolume first = MakeIndependentVolume(o);
+  char label[160];
+  std::snprintf(label, sizeof label, "angle %.0f azimuth %.1f tip offset %.1f %.1f %.1f%s",
+                o.catheter_angle_deg, o.catheter_azimuth_deg, o.tip_offset_mm.x(),
+                o.tip_offset_mm.y(), o.tip_offset_mm.z(),
+                o.store_image_to_probe ? "" : " (no image-to-probe)");
+  AccuracyVolume out{std::move(first.volume), first.truth, std::nullopt, std::nullopt, label};
+  if (!cls.catheter) out.truth.reset();
+  if (next_frame && cls.catheter) {
+    o.advance_mm = 1.0;
+    o.seed += 1;  // fresh speckle, as a new frame
+    IndependentVolume second = MakeIndependentVolume(o);
+    out.next_volume = std::move(second.volume);
+    out.next_truth = second.truth;
+  }
+  return out;
+}
+
 }  // namespace
 
 const std::vector<VolumeClass>& VolumeClasses() {
@@ -176,6 +214,20 @@ const std::vector<VolumeClass>& VolumeClasses() {
        false, false},
       {"spine_phantom",
        "catheter-free real volume: data/plus/SpinePhantomFreehandReconstructed.mha", false, true},
+      {"beam_00", "independent generator: catheter at 0° to the beam, comet tails, known beams",
+       true, false},
+      {"beam_20", "independent generator: 20° to the beam, comet tails, known beams", true, false},
+      {"beam_40", "independent generator: 40° to the beam, comet tails, known beams", true, false},
+      {"beam_60", "independent generator: 60° to the beam, comet tails, known beams", true, false},
+      {"beam_80", "independent generator: 80° to the beam, comet tails, known beams", true, false},
+      {"beam_00_unknown", "beam_00 without an image-to-probe pose (unknown beams)", true, false},
+      {"beam_20_unknown", "beam_20 without an image-to-probe pose", true, false},
+      {"beam_40_unknown", "beam_40 without an image-to-probe pose", true, false},
+      {"beam_60_unknown", "beam_60 without an image-to-probe pose", true, false},
+      {"beam_80_unknown", "beam_80 without an image-to-probe pose", true, false},
+      {"indep_free",
+       "independent generator, catheter-free: speckled blood and a tissue surface, unknown beams",
+       false, false},
   };
   return classes;
 }
@@ -208,6 +260,8 @@ AccuracyVolume MakeAccuracyVolume(const VolumeClass& cls, int index, std::uint64
     return AccuracyVolume{imaging::ReadVolume(spine_volume), std::nullopt, std::nullopt,
                           std::nullopt, spine_volume.filename().string()};
   }
+  if (IsIndependentClass(cls.name))
+    return MakeIndependentAccuracyVolume(cls, index, seed, next_frame);
   std::mt19937_64 rng(MixSeed(seed, cls.name, index));
   Pose pose;
   const SimulatedScannerOptions o = SceneOptions(cls.name, index, rng, pose);

@@ -32,7 +32,10 @@ struct VolumeClass {
 
 // All classes, in report order: water_tank (the default scene, moderate poses), no_reverberation,
 // speckle_clutter, shadowing, wide_poses, sound_speed, then the catheter-free free_annulus,
-// free_tank, free_clutter and spine_phantom.
+// free_tank, free_clutter and spine_phantom; then the independent generator's
+// (tracking/independent_volumes.h) beam_00 … beam_80 (catheter at that angle to the beam, comet
+// tails, the volume knows its beams), beam_00_unknown … beam_80_unknown (it does not) and the
+// catheter-free indep_free.
 const std::vector<VolumeClass>& VolumeClasses();
 // Throws std::invalid_argument listing the known names.
 const VolumeClass& FindVolumeClass(const std::string& name);

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <vector>
 
 #include "tracking/echo_axis_fit.h"
@@ -295,15 +296,23 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg,
   const double p90 = valid[valid.size() * 9 / 10];
   if (p90 <= bg + 10) return out;
   const double thr = bg + 0.3 * (p90 - bg);
-  // Longest run above thr allowing 2 mm gaps.
+  // The run above thr (2 mm gaps allowed) with the most echo above thr: the wire echoes 20–40
+  // dB above tissue, so a long run of tissue (the axis inside the tissue beyond the tip, or
+  // along a wall) does not outweigh the catheter, where the longest run would take it.
   int best_a = -1, best_b = -1, a = -1, last = -1;
+  double run_sum = 0.0, best_sum = -1.0;
   const int gap = static_cast<int>(2.0 / ds);
   for (int i = 0; i < N; ++i) {
     const double x = sm[static_cast<std::size_t>(i)];
     if (!std::isnan(x) && x >= thr) {
-      if (a < 0 || i - last > gap) a = i;
+      if (a < 0 || i - last > gap) {
+        a = i;
+        run_sum = 0.0;
+      }
       last = i;
-      if (best_a < 0 || last - a > best_b - best_a) {
+      run_sum += x - thr;
+      if (run_sum > best_sum) {
+        best_sum = run_sum;
         best_a = a;
         best_b = last;
       }
@@ -398,78 +407,280 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg,
   return out;
 }
 
+namespace {
+
+// One surface position along a profile (samples `ds` apart, s = s_first + i·ds): the first
+// rise above the background (median and robust spread of [bg_lo, bg_hi)) by
+// max(12, 10 % of the line level above the volume's background, 5 × spread), walked back to
+// where the profile last stood within half that rise, then located by FitSurfaceEcho over
+// −1.5…+2.5 mm around that onset. Searched from index `from`; NaN when there is none.
+double FirstSurface(const std::vector<double>& fp, double ds, int from, int bg_lo, int bg_hi,
+                    double rise_floor, double dynamic_range_db) {
+  const int M = static_cast<int>(fp.size());
+  // 0.75 mm box: shorter than the echo of an interface (a pulse's envelope), longer than
+  // one speckle grain's sampling.
+  std::vector<double> fs(static_cast<std::size_t>(M), 0);
+  for (int i = 0; i < M; ++i) {
+    double sum = 0;
+    int n = 0;
+    for (int t = -1; t <= 1; ++t)
+      if (i + t >= 0 && i + t < M) {
+        sum += fp[static_cast<std::size_t>(i + t)];
+        ++n;
+      }
+    fs[static_cast<std::size_t>(i)] = sum / n;
+  }
+  auto at = [&](int i) { return fs[static_cast<std::size_t>(i)]; };
+  double fbg = 0.0, spread = 0.0;
+  {
+    std::vector<double> near;
+    for (int i = std::max(0, bg_lo); i < std::min(M, bg_hi); ++i) near.push_back(at(i));
+    if (near.empty()) return std::numeric_limits<double>::quiet_NaN();
+    const MedianMad m = ComputeMedianMad(near);
+    fbg = m.median;
+    spread = 1.4826 * m.mad;
+  }
+  const double rise = std::max(rise_floor, 5.0 * spread);
+  for (int i = std::max(0, from); i < M; ++i) {
+    if (at(i) <= fbg + rise) continue;
+    // The tissue surface images as the pulse envelope centred on it plus the tissue's own
+    // backscatter from the surface on, both blurred by the point-spread function: fit that
+    // model around the rise. The rise began where the profile last left the background (a
+    // speckled surface can cross the threshold a little inside it).
+    int onset = i;
+    while (onset > from && at(onset - 1) > fbg + 0.5 * rise) --onset;
+    std::vector<double> amp;
+    const int i0 = std::max(0, onset - static_cast<int>(1.5 / ds)),
+              i1 = std::min(M - 1, onset + static_cast<int>(2.5 / ds));
+    for (int k = i0; k <= i1; ++k)
+      amp.push_back(EchoAmplitude(fp[static_cast<std::size_t>(k)], dynamic_range_db));
+    return i0 + FitSurfaceEcho(amp, ds);
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+// The tissue surface beside the tip: rays parallel to the axis at lateral_radius_mm around
+// it (8 directions, the one(s) behind the wire along the beam skipped: its comet tail and
+// shadow), each searched from lateral_back_mm before the tip for its first surface; a plane
+// s = a + b·x + c·y fitted to them (the worst ray beyond 1 mm dropped, repeatedly) and met
+// with the axis at s = a. The surface extends sideways beyond the catheter's radius; the
+// tip does not, so the tip's own echo does not enter these profiles.
+struct LateralSurface {
+  bool found = false;
+  double s_mm = 0.0;  // along the axis from the tip
+  int rays = 0;       // rays that agree
+  int usable = 0;     // rays searched
+};
+
+// Rays beside the tip look this far ahead of it (beyond, the axial search alone).
+constexpr double kLateralReachMm = 40.0;
+
+LateralSurface FindLateralSurface(const imaging::Volume& v, const TipEstimate& tip, double ext,
+                                  double rise_floor, const EdgeOptions& edge) {
+  LateralSurface out;
+  const double ds = 0.25;
+  const double r = edge.lateral_radius_mm, back = edge.lateral_back_mm;
+  Eigen::Vector3d u, w;
+  PlaneBasis(tip.axis.direction, u, w);
+  Eigen::Vector3d beam = BeamDirectionAt(v, tip.tip_mm);
+  beam -= beam.dot(tip.axis.direction) * tip.axis.direction;
+  const bool beam_known = beam.norm() > 0.2;
+  if (beam_known) beam.normalize();
+  std::vector<Eigen::Vector2d> xy;
+  std::vector<double> sv;
+  const int bg_n = static_cast<int>(std::min(4.0, back - 2.0) / ds);
+  for (int k = 0; k < 8; ++k) {
+    const double a = k * std::numbers::pi / 4;
+    const Eigen::Vector3d o = r * (std::cos(a) * u + std::sin(a) * w);
+    if (beam_known && o.normalized().dot(beam) > std::cos(0.7)) continue;  // behind the wire
+    ++out.usable;
+    const Line3 ray{tip.tip_mm - back * tip.axis.direction + o, tip.axis.direction};
+    Eigen::Vector3d ru, rw;
+    PlaneBasis(ray.direction, ru, rw);
+    const DiscProfile profile(v, ray, ru, rw, 0.5, DiscProfile::Reduce::kMean);
+    std::vector<double> fp;
+    for (double s = 0; s <= back + std::min(ext, kLateralReachMm); s += ds) {
+      const double x = profile(s);
+      if (std::isnan(x)) break;
+      fp.push_back(x);
+    }
+    if (static_cast<int>(fp.size()) < bg_n + 8) continue;
+    const double i = FirstSurface(fp, ds, bg_n, 0, bg_n, rise_floor, edge.dynamic_range_db);
+    if (std::isnan(i)) continue;
+    xy.emplace_back(std::cos(a) * r, std::sin(a) * r);
+    sv.push_back(i * ds - back);
+  }
+  // Robust plane fit.
+  std::vector<bool> keep(sv.size(), true);
+  auto count = [&] { return static_cast<int>(std::count(keep.begin(), keep.end(), true)); };
+  while (count() >= 4) {
+    Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+    for (std::size_t k = 0; k < sv.size(); ++k)
+      if (keep[k]) {
+        const Eigen::Vector3d row(1.0, xy[k].x(), xy[k].y());
+        ata += row * row.transpose();
+        atb += row * sv[k];
+      }
+    const Eigen::Vector3d x = ata.ldlt().solve(atb);
+    std::size_t worst = 0;
+    double worst_res = -1;
+    for (std::size_t k = 0; k < sv.size(); ++k)
+      if (keep[k]) {
+        const double res = std::abs(x[0] + x[1] * xy[k].x() + x[2] * xy[k].y() - sv[k]);
+        if (res > worst_res) {
+          worst_res = res;
+          worst = k;
+        }
+      }
+    if (worst_res <= 1.0) {
+      out.s_mm = x[0];
+      out.rays = count();
+      // Half the searched rays at least must agree: a surface, not a speck.
+      out.found = 2 * out.rays >= out.usable;
+      return out;
+    }
+    keep[worst] = false;
+  }
+  return out;
+}
+
+// The wire's end near a surface at s_surface (along the axis from the detected tip, mm):
+// when the tip is within ~2 mm of tissue, or presses into it, the bright run FindTip follows
+// can bridge the gap and continue through the tissue, so its end lies inside or behind it.
+// The wire echoes far brighter than tissue (20–40 dB): its level is the 75th percentile of
+// the first-echo profile over 6…1 mm before the surface, and its end the first crossing of
+// half that amplitude (over the volume's background) going forward from where the profile
+// first reaches it, interpolated; searched up to the detected tip.
+double WireEnd(const imaging::Volume& v, const TipEstimate& tip, double bg, double s_surface,
+               const EdgeOptions& edge) {
+  const double ds = 0.25;
+  Eigen::Vector3d u, w;
+  PlaneBasis(tip.axis.direction, u, w);
+  const FirstEchoDiscProfile first(v, Line3{tip.tip_mm, tip.axis.direction}, u, w, 0.6,
+                                   edge.tip_first_echo_mm);
+  const double s_lo = std::min(s_surface, 0.0) - 6.0;
+  std::vector<double> s_val, amp;
+  for (double s = s_lo; s <= 0.5 + 1e-9; s += ds) {
+    const double x = first(s);
+    s_val.push_back(s);
+    amp.push_back(std::isnan(x) ? 0.0 : EchoAmplitude(x, edge.dynamic_range_db));
+  }
+  std::vector<double> wire;
+  for (std::size_t k = 0; k < s_val.size(); ++k)
+    if (s_val[k] >= s_surface - 6.0 && s_val[k] <= s_surface - 1.0) wire.push_back(amp[k]);
+  if (wire.size() < 4) return 0.0;
+  std::sort(wire.begin(), wire.end());
+  const double level = wire[wire.size() * 3 / 4];
+  const double a_bg = EchoAmplitude(bg, edge.dynamic_range_db);
+  const double cut = a_bg + edge.edge_fraction * (level - a_bg);
+  std::size_t k = 0;
+  while (k < amp.size() && amp[k] < cut) ++k;
+  while (k + 1 < amp.size() && amp[k + 1] >= cut) ++k;
+  if (k + 1 >= amp.size()) return 0.0;  // bright up to the detected tip: that tip
+  const double x0 = amp[k], x1 = amp[k + 1];
+  return s_val[k] + (x0 > x1 ? ds * std::clamp((x0 - cut) / (x0 - x1), 0.0, 1.0) : 0.0);
+}
+
+}  // namespace
+
 TargetEstimate FindTarget(const imaging::Volume& v, const TipEstimate& tip, double bg,
                           const EdgeOptions& edge) {
-  auto A = [&](double x) { return EchoAmplitude(x, edge.dynamic_range_db); };
   TargetEstimate out;
   const Line3 line = tip.axis;
   const double level = tip.line_level;
   const double ds = 0.25;
   const double ext = 0.5 * v.BoundingBoxMm().diagonal().norm() + 1;
-  // Target: forward from the tip, first rise above background after a gap.
+  const double rise_floor = std::max(12.0, 0.1 * (level - bg));
+  // Axial: forward from the tip, the mean over a 0.75 mm disc (the tissue ahead is a broad
+  // surface, and averaging nine samples of its speckle steadies the profile where a max
+  // would chase speckle peaks).
+  std::vector<double> fp;
   {
-    std::vector<double> fp;
     const Line3 fwd{tip.tip_mm, line.direction};
     Eigen::Vector3d fu, fw;
     PlaneBasis(fwd.direction, fu, fw);
-    // Mean over a 0.75 mm disc: the tissue ahead is a broad surface, and averaging nine
-    // samples of its speckle steadies the profile where a max would chase speckle peaks.
     const DiscProfile profile(v, fwd, fu, fw, 0.75, DiscProfile::Reduce::kMean);
     for (double s = 0; s <= ext * 2; s += ds) {
       const double x = profile(s);
       if (std::isnan(x)) break;
       fp.push_back(x);
     }
-    const int M = static_cast<int>(fp.size());
-    // 0.75 mm box: shorter than the echo of an interface (a pulse's envelope), longer than
-    // one speckle grain's sampling.
-    std::vector<double> fs(static_cast<std::size_t>(M), 0);
-    for (int i = 0; i < M; ++i) {
-      double sum = 0;
-      int n = 0;
-      for (int t = -1; t <= 1; ++t)
-        if (i + t >= 0 && i + t < M) {
-          sum += fp[static_cast<std::size_t>(i + t)];
-          ++n;
-        }
-      fs[static_cast<std::size_t>(i)] = sum / n;
-    }
-    auto at = [&](int i) { return fs[static_cast<std::size_t>(i)]; };
-    const int start = static_cast<int>(2.0 / ds);
-    // Background just past the tip gap: median and spread (MAD) over the next 4 mm. Blood
-    // (or a tank's water) scatters too; its speckle must not pass for the surface.
-    double fbg = bg, spread = 0.0;
-    {
-      std::vector<double> near;
-      for (int i = start; i < std::min(M, start + static_cast<int>(4.0 / ds)); ++i)
-        near.push_back(at(i));
-      if (!near.empty()) {
-        const MedianMad m = ComputeMedianMad(near);
-        fbg = m.median;
-        spread = 1.4826 * m.mad;
+  }
+  // From `from_mm` past the tip, the background measured over the next 4 mm (blood, or a
+  // tank's water, scatters too; its speckle must not pass for the surface).
+  // (or up to `bg_end_mm`, at least 1 mm, when a surface is expected sooner).
+  auto axial = [&](double from_mm, double bg_end_mm = 1e9) {
+    const int start = static_cast<int>(from_mm / ds);
+    const int end = static_cast<int>(std::clamp(bg_end_mm, from_mm + 1.0, from_mm + 4.0) / ds);
+    const double i = FirstSurface(fp, ds, start, start, end, rise_floor, edge.dynamic_range_db);
+    return i * ds;
+  };
+  // The located surface met with the axis, in the axial profile: the surface fit over
+  // −1.5…+2.5 mm around the lateral estimate when that window clears the tip's echo.
+  auto refine = [&](double s_mm) {
+    const int i0 = static_cast<int>(std::lround((s_mm - 1.5) / ds));
+    const int i1 = static_cast<int>(std::lround((s_mm + 2.5) / ds));
+    if (i0 * ds < 1.0 || i1 >= static_cast<int>(fp.size())) return s_mm;
+    std::vector<double> amp;
+    for (int k = i0; k <= i1; ++k)
+      amp.push_back(EchoAmplitude(fp[static_cast<std::size_t>(k)], edge.dynamic_range_db));
+    const double s = (i0 + FitSurfaceEcho(amp, ds)) * ds;
+    return std::abs(s - s_mm) <= 0.75 ? s : s_mm;
+  };
+  const double s_axial = axial(2.0);
+  const LateralSurface lateral = FindLateralSurface(v, tip, ext, rise_floor, edge);
+  std::optional<double> s_target;
+  double s_tip = 0.0;  // the tip, re-located, along the axis from the detected one
+  if (lateral.found) {
+    const double sl = lateral.s_mm;
+    if (sl < edge.close_gap_mm) {
+      // Close: the tip's echo and the tissue's merge on the axis; the surface beside the tip
+      // is the evidence, and the wire's end is looked for before it.
+      s_tip = std::min(0.0, WireEnd(v, tip, bg, sl, edge));
+      s_target = sl;
+    } else if (!std::isnan(s_axial) && std::abs(s_axial - sl) <= 1.5) {
+      s_target = s_axial;
+    } else if (!std::isnan(s_axial) && s_axial < sl - 1.5 && s_axial > edge.doubt_gap_mm) {
+      // Something on the axis before the surface around it, well past the tip: a blip of
+      // speckle when the axis, searched past it, meets the lateral surface. Else, at least
+      // close_gap_mm ahead, it is what the catheter points at (the rays beside the tip can
+      // miss a small or curved structure on the axis, or meet clutter); closer, which one
+      // the catheter points at is ambiguous (not found).
+      const double further = axial(s_axial + 2.0, sl - 1.0);
+      if (!std::isnan(further) && std::abs(further - sl) <= 1.5) {
+        s_target = further;
+      } else if (s_axial >= edge.close_gap_mm) {
+        s_target = s_axial;
       }
+    } else if (!std::isnan(s_axial) && s_axial > sl + 1.5 && sl >= edge.close_gap_mm) {
+      // On the axis, beyond a surface found only beside the tip, far from it: the rays beside
+      // the tip met something (clutter, a neighbouring wall) the axis does not.
+      s_target = s_axial;
+    } else {
+      // No axial surface, one beyond the lateral one, or one hugging the tip that the
+      // surface around it does not confirm: the real surface is the lateral one.
+      s_target = refine(sl);
     }
-    const double rise = std::max({12.0, 0.1 * (level - bg), 5.0 * spread});
-    for (int i = start; i < M; ++i) {
-      if (at(i) <= fbg + rise) continue;
-      // The tissue surface images as the pulse envelope centred on it plus the tissue's own
-      // backscatter from the surface on, both blurred by the point-spread function: fit
-      // that model around the rise (FitSurfaceEcho) for the surface's position.
-      // The rise began where the profile last left the background (a speckled surface can
-      // cross the threshold a little inside it).
-      int onset = i;
-      while (onset > start && at(onset - 1) > fbg + 0.5 * rise) --onset;
-      std::vector<double> amp;
-      const int i0 = std::max(0, onset - static_cast<int>(1.5 / ds)),
-                i1 = std::min(M - 1, onset + static_cast<int>(2.5 / ds));
-      for (int k = i0; k <= i1; ++k) amp.push_back(A(fp[static_cast<std::size_t>(k)]));
-      const double s = (i0 + FitSurfaceEcho(amp, ds)) * ds;
-      out.found = true;
-      out.target_mm = tip.tip_mm + s * line.direction;
-      break;
+  } else if (!std::isnan(s_axial)) {
+    if (s_axial > edge.doubt_gap_mm) {
+      s_target = s_axial;
+    } else {
+      // Unconfirmed and hugging the tip: look further along the axis.
+      const double further = axial(s_axial + 2.0);
+      if (!std::isnan(further)) s_target = further;
     }
   }
-
+  if (!s_target) return out;
+  out.found = true;
+  out.tip_mm = tip.tip_mm + s_tip * line.direction;
+  const double gap = *s_target - s_tip;
+  out.contact = lateral.found && gap <= edge.contact_gap_mm;
+  out.gap_mm = out.contact ? 0.0 : gap;
+  out.indentation_mm = std::max(0.0, -gap);
+  // Pressed into the tissue, the target stays the surface around the tip (behind it).
+  out.target_mm =
+      tip.tip_mm + (out.contact ? std::min(*s_target, s_tip) : *s_target) * line.direction;
   return out;
 }
 

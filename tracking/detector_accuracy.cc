@@ -22,7 +22,7 @@ struct Sample {
   int volumes = 0, detected = 0;  // catheter volumes
   int free_volumes = 0, false_detections = 0;
   int errors = 0;
-  std::vector<double> angle_deg, offset_mm, tip_mm, target_mm, detect_ms;
+  std::vector<double> angle_deg, offset_mm, tip_mm, tip_along_mm, target_mm, detect_ms;
 };
 
 struct Timed {
@@ -47,7 +47,7 @@ Timed Time(F&& detect) {
 }
 
 struct Errors {
-  double angle_deg = 0, offset_mm = 0, tip_mm = 0, target_mm = 0;
+  double angle_deg = 0, offset_mm = 0, tip_mm = 0, tip_along_mm = 0, target_mm = 0;
   bool has_target = false;
 };
 
@@ -57,6 +57,7 @@ Errors Measure(const CatheterDetection& d, const imaging::FrameGroundTruth& t) {
                 std::numbers::pi;
   e.offset_mm = PointToLineDistance(d.axis, t.tip_mm);
   e.tip_mm = (d.tip_mm - t.tip_mm).norm();
+  e.tip_along_mm = (d.tip_mm - t.tip_mm).dot(t.axis_direction.normalized());
   e.has_target = t.target_visible;
   e.target_mm = d.target_found ? (d.target_mm - t.target_mm).norm() : kInf;
   return e;
@@ -93,7 +94,9 @@ struct Recorder {
       rec.offset_mm = e.offset_mm;
       if (axis_only) continue;
       s->tip_mm.push_back(e.tip_mm);
+      s->tip_along_mm.push_back(e.tip_along_mm);
       rec.tip_mm = e.tip_mm;
+      rec.tip_along_mm = e.tip_along_mm;
       if (e.has_target) {
         s->target_mm.push_back(e.target_mm);
         rec.target_mm = e.target_mm;
@@ -119,6 +122,7 @@ MethodStats Summarise(const std::string& method, const Sample& s) {
   m.angle_deg = ComputeQuantiles(s.angle_deg);
   m.offset_mm = ComputeQuantiles(s.offset_mm);
   m.tip_mm = ComputeQuantiles(s.tip_mm);
+  m.tip_along_mm = ComputeQuantiles(s.tip_along_mm);
   m.target_mm = ComputeQuantiles(s.target_mm);
   m.false_detections = s.false_detections;
   m.mean_detect_ms = Mean(s.detect_ms);

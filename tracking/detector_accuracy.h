@@ -58,8 +58,11 @@ struct MethodStats {
   int errors = 0;                                     // std::invalid_argument thrown
   double detection_rate = 0;                          // detected / volumes (catheter classes)
   Quantiles angle_deg, offset_mm, tip_mm, target_mm;  // catheter classes
-  int false_detections = 0;                           // catheter-free classes: = detected
-  double mean_detect_ms = 0, median_detect_ms = 0;    // wall time per volume
+  // Signed tip error along the true axis (mm; < 0: short of the true tip): its median is the
+  // tip's bias, its p95 the largest overshoot.
+  Quantiles tip_along_mm;
+  int false_detections = 0;                         // catheter-free classes: = detected
+  double mean_detect_ms = 0, median_detect_ms = 0;  // wall time per volume
 };
 
 struct ClassStats {
@@ -81,7 +84,8 @@ struct VolumeRecord {  // one method on one volume
   bool found = false;
   double angle_deg = 0, offset_mm = 0, tip_mm = 0, target_mm = 0;  // 0 when not applicable
   double confidence = 0;
-  double detect_ms = 0;  // wall time of the detection
+  double detect_ms = 0;     // wall time of the detection
+  double tip_along_mm = 0;  // signed tip error along the true axis (< 0: short)
 };
 
 struct DetectorAccuracyReport {

@@ -24,22 +24,10 @@ struct Echo {
   double w;
 };
 
-// Where the beams come from (imaging/sim/probe.h): the apex of the pyramidal scan and the
-// probe's axis, in the image frame.
-struct BeamSource {
-  Eigen::Vector3d apex, axis;
-  explicit BeamSource(const imaging::Volume& v) {
-    const Eigen::Isometry3d probe_to_image = v.image_to_probe().inverse();
-    apex = probe_to_image.translation();
-    axis = probe_to_image.linear().col(2);
-  }
-  // BeamDirectionAt, without inverting the pose per point.
-  Eigen::Vector3d At(const Eigen::Vector3d& p) const {
-    const Eigen::Vector3d r = p - apex;
-    if (r.dot(axis) <= 1e-6 * r.norm() || r.norm() < 1e-9) return axis;
-    return r.normalized();
-  }
-};
+// A beam within 15° of the catheter's axis has no near wall to see (it runs along the tube),
+// and looking back along it runs along the catheter itself: there the echoes are taken as
+// they are (no first-echo rule, no near-wall offset).
+constexpr double kMinBeamAxisSin = 0.2588;  // sin 15°
 
 // A voxel above the background near the search line; whether it is a first echo is decided
 // when a pass first needs it (the test does not depend on the line).
@@ -56,9 +44,11 @@ struct Candidate {
 // one. The look-back steps along the beam in index space.
 class FirstEchoTest {
  public:
-  FirstEchoTest(const imaging::Volume& v, double first_echo_mm)
+  FirstEchoTest(const imaging::Volume& v, double first_echo_mm, const BeamGeometry& beams,
+                const Eigen::Vector3d& axis_direction)
       : v_(v),
-        beams_(v),
+        beams_(beams),
+        axis_(axis_direction.normalized()),
         step_(v.spacing_mm().minCoeff()),
         look_steps_(first_echo_mm > 0 ? static_cast<int>(std::ceil(first_echo_mm / step_)) : 0),
         // Physical displacement → index displacement (Volume::PhysicalToIndex is affine).
@@ -66,10 +56,12 @@ class FirstEchoTest {
 
   bool operator()(const Candidate& c, const Eigen::Vector3d& origin) const {
     if (look_steps_ == 0) return true;
+    const Eigen::Vector3d beam = beams_.At(c.p + origin);
+    if (beam.cross(axis_).norm() < kMinBeamAxisSin) return true;
     const Eigen::Vector3i dims = v_.dims();
     const std::uint8_t* vox = v_.voxels().data();
     const std::ptrdiff_t sy = dims.x(), sz = static_cast<std::ptrdiff_t>(dims.x()) * dims.y();
-    const Eigen::Vector3d back = to_index_ * (-step_ * beams_.At(c.p + origin));
+    const Eigen::Vector3d back = to_index_ * (-step_ * beam);
     const Eigen::Vector3d idx = Eigen::Vector3d(c.i, c.j, c.k) + Eigen::Vector3d::Constant(0.5);
     for (int q = 1; q <= look_steps_; ++q) {
       // Rounding half away from zero (std::lround, a library call) of a coordinate x with
@@ -87,7 +79,8 @@ class FirstEchoTest {
 
  private:
   const imaging::Volume& v_;
-  BeamSource beams_;
+  BeamGeometry beams_;
+  Eigen::Vector3d axis_;  // the start line's direction (the catheter's, within degrees)
   double step_;
   int look_steps_;
   Eigen::Matrix3d to_index_;
@@ -263,18 +256,74 @@ void EchoAxisFitOptions::Validate() const {
     bad("echo_level_fraction", "must be in [0, 1)");
 }
 
+BeamGeometry BeamGeometry::FromVolume(const imaging::Volume& v) {
+  if (!v.has_image_to_probe()) return {};
+  const Eigen::Isometry3d probe_to_image = v.image_to_probe().inverse();
+  BeamGeometry b;
+  b.kind = Kind::kApex;
+  b.apex_mm = probe_to_image.translation();
+  b.axis = probe_to_image.linear().col(2);
+  return b;
+}
+
+BeamGeometry BeamGeometry::FromApex(const Eigen::Vector3d& apex_mm) {
+  if (!apex_mm.allFinite())
+    throw std::invalid_argument("BeamGeometry::FromApex: the probe apex must be finite");
+  BeamGeometry b;
+  b.kind = Kind::kApex;
+  b.apex_mm = apex_mm;
+  return b;
+}
+
+BeamGeometry BeamGeometry::Parallel(const Eigen::Vector3d& direction) {
+  if (!direction.allFinite() || !(direction.norm() > 1e-9))
+    throw std::invalid_argument(
+        "BeamGeometry::Parallel: the beam direction must be finite and non-zero");
+  BeamGeometry b;
+  b.kind = Kind::kParallel;
+  b.axis = direction.normalized();
+  return b;
+}
+
+Eigen::Vector3d BeamGeometry::At(const Eigen::Vector3d& p) const {
+  switch (kind) {
+    case Kind::kUnknown:
+      return Eigen::Vector3d::Zero();
+    case Kind::kParallel:
+      return axis;
+    case Kind::kApex:
+      break;
+  }
+  const Eigen::Vector3d r = p - apex_mm;
+  if (r.norm() < 1e-9) return axis.norm() > 0 ? axis : Eigen::Vector3d::UnitZ();
+  if (axis.norm() > 0 && r.dot(axis) <= 1e-6 * r.norm()) return axis;
+  return r.normalized();
+}
+
 Eigen::Vector3d BeamDirectionAt(const imaging::Volume& v, const Eigen::Vector3d& p_mm) {
-  return BeamSource(v).At(p_mm);
+  // The volume's transform, known or not (the identity: beams from the image origin).
+  const Eigen::Isometry3d probe_to_image = v.image_to_probe().inverse();
+  BeamGeometry b;
+  b.kind = BeamGeometry::Kind::kApex;
+  b.apex_mm = probe_to_image.translation();
+  b.axis = probe_to_image.linear().col(2);
+  return b.At(p_mm);
 }
 
 std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& start, double bg,
                                        const EchoAxisFitOptions& o) {
+  return FitEchoAxis(v, start, bg, o, BeamGeometry::FromVolume(v));
+}
+
+std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& start, double bg,
+                                       const EchoAxisFitOptions& o, const BeamGeometry& beams) {
   const Eigen::Vector3d origin = start.point;
   Line3 line{Eigen::Vector3d::Zero(), start.direction.normalized()};
   std::vector<Echo> echoes;
   // Each pass gathers the voxels of its cylinder; a voxel's first-echo test (which does not
   // depend on the line) runs once, when a pass first meets the voxel.
-  const FirstEchoTest first_echo(v, o.first_echo_mm);
+  // Unknown beams: no first-echo rule and no near-wall offset (the symmetric centre-line fit).
+  const FirstEchoTest first_echo(v, beams.known() ? o.first_echo_mm : 0.0, beams, start.direction);
   std::vector<Candidate> pool;
   double threshold = bg;
   for (double f : {1.0, 0.8, 0.6}) {
@@ -303,8 +352,8 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
   EchoAxisFit fit;
   fit.echo_line = Line3{line.point + origin, line.direction};
   fit.echo_count = static_cast<int>(echoes.size());
-  const double R = 0.5 * o.sheath_diameter_mm, rho = 0.5 * o.wire_diameter_mm;
-  const BeamSource beams(v);
+  const double R = beams.known() ? 0.5 * o.sheath_diameter_mm : 0.0,
+               rho = beams.known() ? 0.5 * o.wire_diameter_mm : 0.0;
   Line3 axis = line;
   if (R > 0) {
     const std::size_t n = echoes.size();
@@ -317,7 +366,8 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
         s[i] = (echoes[i].p - axis.point).dot(d);
         const Eigen::Vector3d b = beams.At(echoes[i].p + origin);
         const Eigen::Vector3d bp = b - b.dot(d) * d;
-        nrm[i] = bp.norm() > 1e-9 ? Eigen::Vector3d(bp.normalized()) : Eigen::Vector3d::Zero();
+        nrm[i] = bp.norm() >= kMinBeamAxisSin ? Eigen::Vector3d(bp.normalized())
+                                              : Eigen::Vector3d::Zero();
       }
       std::iota(order.begin(), order.end(), std::size_t{0});
       std::sort(order.begin(), order.end(),

@@ -4,7 +4,10 @@
 //
 // In: a Volume, a start line near the catheter, the background voxel value and the catheter's
 // outer diameters (mm; 0: the echoes are the axis). Out: the axis and the echoes' own line in
-// the volume's image frame (mm). Beams run from the probe apex (Volume::image_to_probe).
+// the volume's image frame (mm). Beams (BeamGeometry) run from the probe apex when the volume
+// knows its image-to-probe transform (Volume::has_image_to_probe) or the caller gives them;
+// when the beams are unknown the fit is the symmetric centre-line fit (no first-echo rule, no
+// near-wall offset: the axis through the centre of the bright cross-section).
 // Errors: Validate throws std::invalid_argument naming the field; FitEchoAxis returns empty
 // when fewer than 4 echoes lie near the start line.
 // Details: docs/detector.md#algorithm (step 4)
@@ -41,11 +44,39 @@ struct EchoAxisFit {
   double rms_mm = 0.0;  // weighted RMS distance of the moved echoes to the axis
 };
 
-// Beam direction (unit, away from the transducer) at image-frame point p.
+// Where the beams come from, in the image frame (mm): from a probe apex (a pyramidal or
+// sector scan), all along one direction (a linear probe: parallel beams), or unknown (a
+// volume reconstructed or compounded from many probe poses, a file without the transform).
+struct BeamGeometry {
+  enum class Kind { kUnknown, kApex, kParallel };
+  Kind kind = Kind::kUnknown;
+  Eigen::Vector3d apex_mm = Eigen::Vector3d::Zero();  // kApex
+  // kParallel: the beam direction. kApex: the probe's axis (+z of the probe frame) for points
+  // not in front of the apex; zero: every point's beam runs from the apex.
+  Eigen::Vector3d axis = Eigen::Vector3d::Zero();
+
+  bool known() const { return kind != Kind::kUnknown; }
+  // From the volume's image-to-probe transform (imaging/sim/probe.h: the probe frame's origin
+  // is the apex, +z its axis); unknown when the volume does not have one.
+  static BeamGeometry FromVolume(const imaging::Volume& volume);
+  // Throws std::invalid_argument when `apex_mm` is not finite.
+  static BeamGeometry FromApex(const Eigen::Vector3d& apex_mm);
+  // Throws std::invalid_argument when `direction` is not finite or is (nearly) zero.
+  static BeamGeometry Parallel(const Eigen::Vector3d& direction);
+  // Unit beam direction (away from the transducer) at p; unknown: zero.
+  Eigen::Vector3d At(const Eigen::Vector3d& p_mm) const;
+};
+
+// Beam direction (unit, away from the transducer) at image-frame point p, from the volume's
+// image-to-probe transform (the identity when it has none: beams from the image origin).
 Eigen::Vector3d BeamDirectionAt(const imaging::Volume& volume, const Eigen::Vector3d& p_mm);
 
-// Empty when fewer than 4 echoes lie near `start`.
+// Empty when fewer than 4 echoes lie near `start`. Beams from BeamGeometry::FromVolume.
 std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& volume, const Line3& start,
                                        double background, const EchoAxisFitOptions& options);
+// The same with the beams given; unknown beams: the symmetric centre-line fit.
+std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& volume, const Line3& start,
+                                       double background, const EchoAxisFitOptions& options,
+                                       const BeamGeometry& beams);
 
 }  // namespace echoservo::tracking

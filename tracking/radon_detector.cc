@@ -81,6 +81,12 @@ void RadonDetectorOptions::Validate() const {
   if (!(edge.edge_fraction > 0 && edge.edge_fraction < 1)) bad("edge.edge_fraction");
   if (!(edge.dynamic_range_db > 0 && edge.dynamic_range_db <= 120)) bad("edge.dynamic_range_db");
   if (!(edge.tip_first_echo_mm >= 0 && edge.tip_first_echo_mm < 50)) bad("edge.tip_first_echo_mm");
+  if (!(edge.lateral_radius_mm > 0 && edge.lateral_radius_mm <= 20)) bad("edge.lateral_radius_mm");
+  if (!(edge.lateral_back_mm >= 3 && edge.lateral_back_mm <= 30)) bad("edge.lateral_back_mm");
+  if (!(edge.close_gap_mm > 0 && edge.close_gap_mm <= 20)) bad("edge.close_gap_mm");
+  if (!(edge.contact_gap_mm >= 0 && edge.contact_gap_mm < edge.close_gap_mm))
+    bad("edge.contact_gap_mm");
+  if (!(edge.doubt_gap_mm >= 0 && edge.doubt_gap_mm < edge.close_gap_mm)) bad("edge.doubt_gap_mm");
   if (!(min_line_length_mm >= 0 && std::isfinite(min_line_length_mm))) bad("min_line_length_mm");
   if (!(min_confidence >= 0 && min_confidence <= 1)) bad("min_confidence");
   if (!(tracking_cone_rad > 0 && tracking_cone_rad < 1.5)) bad("tracking_cone_rad");
@@ -91,6 +97,12 @@ void RadonDetectorOptions::Validate() const {
   if (max_candidates < 1 || max_candidates > 16) bad("max_candidates");
   if (!(candidate_separation_rad > 0 && candidate_separation_rad < 1.6))
     bad("candidate_separation_rad");
+  if (beams) {
+    if (!beams->apex_mm.allFinite()) bad("beams.apex_mm (must be finite)");
+    if (!beams->axis.allFinite()) bad("beams.axis (must be finite)");
+    if (beams->kind == BeamGeometry::Kind::kParallel && !(beams->axis.norm() > 1e-9))
+      bad("beams.axis (a parallel beam needs a non-zero direction)");
+  }
 }
 
 RadonDetector::RadonDetector(RadonDetectorOptions options) : options_(std::move(options)) {
@@ -258,37 +270,77 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
   }
   // Nearest the transducer among the strong parallel lines of the best direction: comet
   // tails (reverberation) lie behind the catheter along the beam, so farther from the probe
-  // apex (Volume::image_to_probe; the image origin when the volume has no probe pose).
+  // apex (or deeper along a parallel beam). Unknown beams: the strongest line.
   auto peaks = RadonPeaks(L2, f.direction, window, false);
   if (peaks.empty()) return out;
   const double z_score = scene.valid ? RobustZ(scene, coarse_peak.score) : 0.0;
-  const Eigen::Vector3d apex = v.image_to_probe().inverse().translation();
+  BeamGeometry beams = options_.beams ? *options_.beams : BeamGeometry::FromVolume(v);
+  // Range from the transducer: distance to the apex, or depth along a parallel beam.
+  auto range_of = [&](const Line3& l) {
+    if (beams.kind == BeamGeometry::Kind::kParallel)
+      return (l.point - l.point.dot(l.direction) * l.direction).dot(beams.axis);
+    return PointToLineDistance(l, beams.apex_mm);
+  };
   Line3 line = PeakLine(L2, f.direction, peaks.front());
-  double range = PointToLineDistance(line, apex);
-  for (const auto& p : peaks) {
-    if (p.score < 0.6 * peaks.front().score) break;
-    const Line3 cand = PeakLine(L2, f.direction, p);
-    const double r = PointToLineDistance(cand, apex);
-    if (r < range - 1.0 && range - r < 15.0) {
-      line = cand;
-      range = r;
+  if (beams.known()) {
+    double range = range_of(line);
+    for (const auto& p : peaks) {
+      if (p.score < 0.6 * peaks.front().score) break;
+      const Line3 cand = PeakLine(L2, f.direction, p);
+      const double r = range_of(cand);
+      if (r < range - 1.0 && range - r < 15.0) {
+        line = cand;
+        range = r;
+      }
     }
   }
 
-  const auto fit = FitEchoAxis(v, line, bg, options_.fit);
+  auto fit = FitEchoAxis(v, line, bg, options_.fit, beams);
   if (!fit) return out;
-  const TipEstimate tip = FindTip(v, fit->axis, bg, options_.edge);
+  // FindTip's first-echo edge looks back along the volume's own beams: only when those are
+  // the beams in use.
+  EdgeOptions tip_edge = options_.edge;
+  if (options_.beams || !beams.known()) tip_edge.tip_first_echo_mm = 0.0;
+  TipEstimate tip = FindTip(v, fit->axis, bg, tip_edge);
   if (!tip.found) return out;
+  if (!beams.known() && options_.infer_beams_from_ribbon) {
+    // Unknown beams, but a single view's reverberation ribbon shows where they point (its
+    // direction ⟂ the axis, away from the transducer): then the near-wall model and the
+    // first-echo rule apply with those beams. No ribbon (a compounded volume, a catheter
+    // along the beam): the symmetric centre-line fit stands.
+    const double s_tip = tip.axis.Parameter(tip.tip_mm);
+    if (const auto e = RibbonDirection(v, tip.axis, s_tip - tip.line_length_mm, s_tip,
+                                       options_.edge.dynamic_range_db, options_.tube)) {
+      const BeamGeometry inferred = BeamGeometry::Parallel(*e);
+      auto refit = FitEchoAxis(v, fit->axis, bg, options_.fit, inferred);
+      if (refit) {
+        const TipEstimate retip = FindTip(v, refit->axis, bg, tip_edge);
+        if (retip.found) {
+          fit = std::move(refit);
+          tip = retip;
+          beams = inferred;
+        }
+      }
+    }
+  }
   out.axis = tip.axis;
   out.tip_mm = tip.tip_mm;
   out.line_length_mm = tip.line_length_mm;
   const TargetEstimate target = FindTarget(v, tip, bg, options_.edge);
   out.target_found = target.found;
   out.target_mm = target.target_mm;
+  out.contact = target.found && target.contact;
+  out.target_gap_mm = target.gap_mm;
+  out.target_indentation_mm = target.indentation_mm;
+  if (target.found) {  // the tip re-located before the tissue its bright run went through
+    const double shift = out.axis.Parameter(out.tip_mm) - out.axis.Parameter(target.tip_mm);
+    out.tip_mm = target.tip_mm;
+    out.line_length_mm = std::max(0.0, out.line_length_mm - shift);
+  }
 
-  out.tubularity =
-      Tubularity(v, out.axis, out.axis.Parameter(out.tip_mm) - out.line_length_mm,
-                 out.axis.Parameter(out.tip_mm), options_.edge.dynamic_range_db, options_.tube);
+  out.tubularity = Tubularity(v, out.axis, out.axis.Parameter(out.tip_mm) - out.line_length_mm,
+                              out.axis.Parameter(out.tip_mm), options_.edge.dynamic_range_db,
+                              options_.tube, beams);
 
   // Confidence: Radon peak contrast (robust z among the directions' best lines), length, and
   // the line's tube shape (a line within a surface is not a catheter). The peak's contrast

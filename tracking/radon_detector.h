@@ -51,6 +51,15 @@ struct RadonDetectorOptions {
   // many directions in all, each at least candidate_separation_rad from those tried.
   int max_candidates = 3;
   double candidate_separation_rad = 0.35;  // ~20°
+  // The beams, when the caller knows them (CLI --probe-apex, --beam-direction); otherwise the
+  // volume's (BeamGeometry::FromVolume: unknown without an image-to-probe transform). Unknown
+  // beams: the symmetric centre-line axis fit, the tube check judges the ribbon from the
+  // cross-section, and the tip edge uses all echoes (docs/detector.md#beam-geometry).
+  std::optional<BeamGeometry> beams;
+  // Unknown beams: when the catheter's cross-sections show a reverberation ribbon (tube_check.h
+  // RibbonDirection), fit again with parallel beams along it (the near-wall model and the
+  // first-echo rule then apply); false: the symmetric centre-line fit always.
+  bool infer_beams_from_ribbon = true;
 
   // Throws std::invalid_argument naming the field.
   void Validate() const;
@@ -76,12 +85,17 @@ struct CatheterDetection {
   Eigen::Vector3d tip_mm = Eigen::Vector3d::Zero();
   bool target_found = false;
   Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();
-  double confidence = 0.0;      // [0, 1]
-  double line_length_mm = 0.0;  // bright run length along the axis
-  bool tracked = false;         // result of the tracking search
-  double tubularity = 0.0;      // tracking/tube_check.h: ≈ 1 tube, ≈ 0 line within a surface
-  double peak_z = 0.0;          // robust z-score of the Radon peak among its histogram's lines
-  SceneBaseline baseline;       // the statistics this result used (valid once the search ran)
+  // The tip touches the target's tissue (gap 0); target_mm is then the surface around the
+  // tip, behind it by target_indentation_mm when the tip presses into the tissue.
+  bool contact = false;
+  double target_gap_mm = 0.0;          // tip to target along the axis, ≥ 0
+  double target_indentation_mm = 0.0;  // ≥ 0
+  double confidence = 0.0;             // [0, 1]
+  double line_length_mm = 0.0;         // bright run length along the axis
+  bool tracked = false;                // result of the tracking search
+  double tubularity = 0.0;  // tracking/tube_check.h: ≈ 1 tube, ≈ 0 line within a surface
+  double peak_z = 0.0;      // robust z-score of the Radon peak among its histogram's lines
+  SceneBaseline baseline;   // the statistics this result used (valid once the search ran)
 };
 
 class RadonDetector {

@@ -7,7 +7,8 @@
 //   {"volumes_per_class", "seed", "exhaustive", "throughput_ms": {METHOD: {"mean", "median",
 //    "volumes"}}, "classes": [{"name", "description", "catheter", "volumes", "methods":
 //    [{"method", "volumes", "detected", "detection_rate", "false_detections", "errors",
-//    "angle_deg": {"median", "p95", "count"}, "offset_mm", "tip_mm", "target_mm", "mean_ms",
+//    "angle_deg": {"median", "p95", "count"}, "offset_mm", "tip_mm", "tip_along_mm" (signed,
+//    < 0: short of the true tip), "target_mm", "mean_ms",
 //    "median_ms"}], "agreement": {"angle_deg", "offset_mm"} | null}], "agreement", "skipped"}
 // (non-finite figures, e.g. a median over no volume, are null).
 #include <CLI/CLI.hpp>
@@ -57,6 +58,7 @@ nlohmann::json MethodJson(const tracking::MethodStats& m) {
           {"angle_deg", QuantilesJson(m.angle_deg)},
           {"offset_mm", QuantilesJson(m.offset_mm)},
           {"tip_mm", QuantilesJson(m.tip_mm)},
+          {"tip_along_mm", QuantilesJson(m.tip_along_mm)},
           {"target_mm", QuantilesJson(m.target_mm)},
           {"mean_ms", m.mean_detect_ms},
           {"median_ms", Number(m.median_detect_ms)}};

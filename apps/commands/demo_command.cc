@@ -83,6 +83,17 @@ void RunDemoCommand(const DemoArgs& a) {
         {"limit_faults", r.limit_faults},
         {"limit_violations", r.limit_violations},
         {"resumes", r.resumes},
+        {"stale_events", r.stale_events},
+        {"target",
+         {{"volumes", r.tracked_volumes},
+          {"found", r.target_found},
+          {"found_fraction", r.tracked_volumes ? static_cast<double>(r.target_found) /
+                                                     static_cast<double>(r.tracked_volumes)
+                                               : 0.0},
+          {"contact_true", r.contact_true},
+          {"contact_reported", r.contact_reported},
+          {"contact_true_reported", r.contact_true_reported},
+          {"contact_reported_apart", r.contact_reported_apart}}},
         {"ekf_harmonics", r.ekf_harmonics},
         {"ekf_rate_hz", r.ekf_rate_hz},
         {"run_dir", a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}};

@@ -1,14 +1,19 @@
-// `echoservo detect VOLUME|SEQUENCE [--json] [--track]`: the catheter axis, guidewire tip
-// and target of every frame of a volume file or PLUS sequence (tracking/radon_detector.h),
-// in mm in each volume's image (physical) frame. Output:
+// `echoservo detect VOLUME|SEQUENCE [--json] [--track] [--probe-apex X,Y,Z | --beam-direction
+// X,Y,Z]`: the catheter axis, guidewire tip and target of every frame of a volume file or PLUS
+// sequence (tracking/radon_detector.h), in mm in each volume's image (physical) frame. The
+// beams come from the file's image-to-probe transform, or from --probe-apex (image mm) or
+// --beam-direction (a linear probe's parallel beams, image frame); neither: unknown beams
+// (the symmetric centre-line fit). Output:
 //   {"frames": [{"found", "axis_point": [x,y,z], "axis_direction", "tip", "target",
 //                "confidence", "tubularity", "tracked", "time_ms"}]}
 // (axis/tip/target are null when not found; target is null when no tissue lies ahead).
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <cmath>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 #include <string>
 
 #include "apps/commands/imaging_commands.h"
@@ -18,6 +23,40 @@
 namespace echoservo::apps {
 
 namespace {
+
+// "X,Y,Z" → a finite vector in *out (non-zero when `non_zero`); empty when valid, else why not.
+std::string Vec3Problem(const std::string& text, bool non_zero, Eigen::Vector3d* out) {
+  Eigen::Vector3d v;
+  std::size_t pos = 0;
+  for (int a = 0; a < 3; ++a) {
+    const std::size_t end = text.find(',', pos);
+    if ((a < 2) != (end != std::string::npos))
+      return "expected X,Y,Z (three comma-separated numbers), got '" + text + "'";
+    const std::string part = text.substr(pos, a < 2 ? end - pos : std::string::npos);
+    std::size_t used = 0;
+    double x = 0;
+    try {
+      x = std::stod(part, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != part.size() || !std::isfinite(x))
+      return "'" + part + "' is not a finite number (in '" + text + "')";
+    v[a] = x;
+    pos = end + 1;
+  }
+  if (non_zero && !(v.norm() > 1e-9)) return "the direction must be non-zero";
+  if (out) *out = v;
+  return {};
+}
+
+// The option's vector; std::invalid_argument naming the option when it is not valid.
+Eigen::Vector3d ParseVec3(const std::string& text, const std::string& option, bool non_zero) {
+  Eigen::Vector3d v;
+  if (const std::string why = Vec3Problem(text, non_zero, &v); !why.empty())
+    throw std::invalid_argument(option + ": " + why);
+  return v;
+}
 
 nlohmann::json Vec3(const Eigen::Vector3d& v) {
   return nlohmann::json::array({v.x(), v.y(), v.z()});
@@ -50,7 +89,24 @@ void AddDetectCommand(CLI::App& app) {
   cmd->add_option("--min-confidence", options->min_confidence, "below: not found")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
-  cmd->callback([file, json, track, options] {
+  auto apex = std::make_shared<std::string>();
+  auto beam_direction = std::make_shared<std::string>();
+  auto* apex_opt =
+      cmd->add_option("--probe-apex", *apex,
+                      "the probe apex X,Y,Z (image frame, mm): beams run from it (for a file "
+                      "without an image-to-probe transform)")
+          ->check([](const std::string& t) { return Vec3Problem(t, false, nullptr); });
+  cmd->add_option("--beam-direction", *beam_direction,
+                  "a linear probe's beam direction X,Y,Z (image frame, away from the probe; "
+                  "non-zero): parallel beams")
+      ->check([](const std::string& t) { return Vec3Problem(t, true, nullptr); })
+      ->excludes(apex_opt);
+  cmd->callback([file, json, track, options, apex, beam_direction] {
+    if (!apex->empty())
+      options->beams = tracking::BeamGeometry::FromApex(ParseVec3(*apex, "--probe-apex", false));
+    if (!beam_direction->empty())
+      options->beams =
+          tracking::BeamGeometry::Parallel(ParseVec3(*beam_direction, "--beam-direction", true));
     tracking::RadonDetector detector(*options);  // validates the combination (wire ≤ sheath)
     auto source = imaging::OpenRecording(*file);
     nlohmann::json frames = nlohmann::json::array();
@@ -73,6 +129,9 @@ void AddDetectCommand(CLI::App& app) {
       j["axis_direction"] = d.found ? Vec3(d.axis.direction) : nlohmann::json(nullptr);
       j["tip"] = d.found ? Vec3(d.tip_mm) : nlohmann::json(nullptr);
       j["target"] = d.found && d.target_found ? Vec3(d.target_mm) : nlohmann::json(nullptr);
+      j["contact"] = d.found && d.target_found && d.contact;
+      j["target_gap_mm"] =
+          d.found && d.target_found ? nlohmann::json(d.target_gap_mm) : nlohmann::json(nullptr);
       j["confidence"] = d.confidence;
       j["tubularity"] = d.tubularity;
       j["tracked"] = d.tracked;

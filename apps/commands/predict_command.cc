@@ -1,5 +1,8 @@
-// `echoservo predict TRACE`: the heartbeat EKF against baselines on a motion trace.
+// `echoservo predict TRACE`: the predictor competition the live tracker ships (heartbeat
+// EKF, autoregressive predictor, baselines; estimation/predictor_competition.h) and each
+// competitor alone, on a motion trace.
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -9,6 +12,7 @@
 #include "apps/commands/motion_commands.h"
 #include "apps/output.h"
 #include "estimation/prediction_eval.h"
+#include "estimation/realistic_heart_trace.h"
 
 namespace echoservo::apps {
 namespace {
@@ -27,6 +31,10 @@ struct PredictFlags {
   double min_hz = 0.6;
   double max_hz = 3.0;
   bool json = false;
+  std::string realistic;  // a realistic trace class instead of TRACE
+  std::uint64_t seed = 1;
+  double duration_s = 30.0;
+  std::string combination = "best";
 };
 
 int ParseHarmonics(const std::string& text) {
@@ -70,13 +78,37 @@ void CheckTraceFile(const std::string& path) {
 }
 
 void RunPredict(const PredictFlags& f) {
-  CheckTraceFile(f.trace);
-  const estimation::MotionTrace trace = estimation::ReadMotionTrace(f.trace, f.column);
+  estimation::MotionTrace trace;
   estimation::MotionTrace truth;
   estimation::PredictionRunOptions o;
-  if (!f.truth.empty()) {
-    truth = estimation::ReadMotionTrace(f.trace, f.truth);
-    o.truth = &truth;
+  if (!f.realistic.empty()) {
+    if (!f.trace.empty())
+      throw std::invalid_argument("predict: give either TRACE or --realistic CLASS, not both");
+    if (!f.column.empty() && f.column != "position")
+      throw std::invalid_argument("predict --realistic: the trace has one column, 'position'");
+    estimation::RealisticHeartOptions ro = estimation::RealisticHeartClass(f.realistic, f.seed);
+    ro.duration_s = f.duration_s;
+    trace = estimation::GenerateRealisticHeartTrace(ro, &truth);
+    if (!f.truth.empty()) {
+      if (f.truth != "truth")
+        throw std::invalid_argument("predict --realistic: --truth must be 'truth' (noise-free)");
+      o.truth = &truth;
+    }
+  } else {
+    if (f.trace.empty())
+      throw std::invalid_argument("predict: a TRACE file (or --realistic CLASS) is required");
+    CheckTraceFile(f.trace);
+    trace = estimation::ReadMotionTrace(f.trace, f.column);
+    if (!f.truth.empty()) {
+      truth = estimation::ReadMotionTrace(f.trace, f.truth);
+      o.truth = &truth;
+    }
+  }
+  if (f.combination == "weighted") {
+    o.combination = estimation::Combination::kWeighted;
+  } else if (f.combination != "best") {
+    throw std::invalid_argument("--combination must be 'best' or 'weighted', not '" +
+                                f.combination + "'");
   }
   o.latency_s = f.latency_s;
   o.measurement_rate_hz = f.rate_hz;
@@ -90,56 +122,75 @@ void RunPredict(const PredictFlags& f) {
   o.ekf.max_rate_hz = f.max_hz;
   const estimation::PredictionRun r = estimation::RunPrediction(trace, o);
   const double zoh = r.baselines.front().rms_mm;
+  // The heart rate only inside the physiological band (a rate outside it is no heart rate).
+  const double bpm = 60.0 * r.rate_hz;
+  const bool bpm_valid = bpm >= 30.0 && bpm <= 220.0;
   if (f.json) {
     nlohmann::json baselines = nlohmann::json::object();
     for (const auto& b : r.baselines) baselines[b.name] = ScoreJson(b);
-    nlohmann::json j = {{"trace", f.trace},
-                        {"column", trace.column},
-                        {"reference", f.truth.empty() ? trace.column : f.truth},
-                        {"latency_s", f.latency_s},
-                        {"measurements", r.measurements},
-                        {"measurement_rate_hz", r.measurement_rate_hz},
-                        {"gaps", r.gaps},
-                        {"scored", r.scored},
-                        {"scored_from_s", r.scored_from_s},
-                        {"unscored_in_gaps", r.unscored_in_gaps},
-                        {"ekf_rms_mm", r.ekf.rms_mm},
-                        {"ekf",
-                         {{"rms_mm", r.ekf.rms_mm},
-                          {"mae_mm", r.ekf.mae_mm},
-                          {"max_mm", r.ekf.max_mm},
-                          {"harmonics", r.harmonics},
-                          {"heart_rate_bpm", 60.0 * r.rate_hz},
-                          {"noise_mm", r.noise_mm},
-                          {"respiration", r.respiration},
-                          {"respiration_mode", RespirationMode(f)},
-                          {"offset_rate_q_mm_s", r.offset_rate_q_mm_s},
-                          {"accepted", r.accepted},
-                          {"rejected", r.rejected},
-                          {"initialisations", r.initialisations}}},
-                        {"baselines", baselines},
-                        {"zoh_over_ekf", zoh / r.ekf.rms_mm},
-                        {"constant_velocity_kf_accel_psd_mm2_s3", r.cv_accel_psd_mm2_s3}};
+    nlohmann::json competitors = nlohmann::json::object();
+    for (const auto& c : r.competitors) competitors[c.name] = ScoreJson(c);
+    nlohmann::json chosen = nlohmann::json::object();
+    for (const auto& [name, fraction] : r.chosen_fraction) chosen[name] = fraction;
+    nlohmann::json shipped = ScoreJson(r.shipped);
+    shipped["switches"] = r.switches;
+    nlohmann::json j = {
+        {"trace", f.trace},
+        {"column", trace.column},
+        {"reference", f.truth.empty() ? trace.column : f.truth},
+        {"latency_s", f.latency_s},
+        {"measurements", r.measurements},
+        {"measurement_rate_hz", r.measurement_rate_hz},
+        {"gaps", r.gaps},
+        {"scored", r.scored},
+        {"scored_from_s", r.scored_from_s},
+        {"unscored_in_gaps", r.unscored_in_gaps},
+        {"ekf_rms_mm", r.shipped.rms_mm},
+        {"shipped", shipped},
+        {"competitors", competitors},
+        {"chosen", chosen},
+        {"ekf",
+         {{"rms_mm", r.ekf.rms_mm},
+          {"mae_mm", r.ekf.mae_mm},
+          {"max_mm", r.ekf.max_mm},
+          {"harmonics", r.harmonics},
+          {"heart_rate_bpm", bpm_valid ? nlohmann::json(bpm) : nlohmann::json(nullptr)},
+          {"reacquisitions", r.reacquisitions},
+          {"noise_mm", r.noise_mm},
+          {"respiration", r.respiration},
+          {"respiration_mode", RespirationMode(f)},
+          {"offset_rate_q_mm_s", r.offset_rate_q_mm_s},
+          {"accepted", r.accepted},
+          {"rejected", r.rejected},
+          {"initialisations", r.initialisations}}},
+        {"autoregressive", {{"order", r.ar_order}, {"horizon_steps", r.ar_horizon_steps}}},
+        {"baselines", baselines},
+        {"zoh_over_ekf", zoh / r.shipped.rms_mm},
+        {"constant_velocity_kf_accel_psd_mm2_s3", r.cv_accel_psd_mm2_s3}};
     std::cout << j.dump(2) << "\n";
     return;
   }
-  std::cout << "trace " << f.trace << " (column " << trace.column << ", " << r.measurements
-            << " measurements at " << Fixed(r.measurement_rate_hz, 1) << " Hz, " << r.gaps
-            << " gap(s)); prediction " << Fixed(1000.0 * f.latency_s, 0) << " ms ahead, scored on "
-            << r.scored << " instants from t = " << Fixed(r.scored_from_s, 2) << " s against "
+  std::cout << "trace " << (f.realistic.empty() ? f.trace : trace.source) << " (column "
+            << trace.column << ", " << r.measurements << " measurements at "
+            << Fixed(r.measurement_rate_hz, 1) << " Hz, " << r.gaps << " gap(s)); prediction "
+            << Fixed(1000.0 * f.latency_s, 0) << " ms ahead, scored on " << r.scored
+            << " instants from t = " << Fixed(r.scored_from_s, 2) << " s against "
             << (f.truth.empty() ? trace.column : f.truth) << "\n\n";
-  Table t({"predictor", "rms_mm", "mae_mm", "max_mm", "vs_zero_order_hold"});
-  t.AddRow({"heartbeat_ekf", Fixed(r.ekf.rms_mm, 3), Fixed(r.ekf.mae_mm, 3), Fixed(r.ekf.max_mm, 3),
-            Fixed(r.ekf.rms_mm / zoh, 3)});
-  for (const auto& b : r.baselines) {
-    t.AddRow({b.name, Fixed(b.rms_mm, 3), Fixed(b.mae_mm, 3), Fixed(b.max_mm, 3),
-              Fixed(b.rms_mm / zoh, 3)});
+  Table t({"predictor", "rms_mm", "mae_mm", "max_mm", "vs_zero_order_hold", "chosen"});
+  t.AddRow({"shipped (competition)", Fixed(r.shipped.rms_mm, 3), Fixed(r.shipped.mae_mm, 3),
+            Fixed(r.shipped.max_mm, 3), Fixed(r.shipped.rms_mm / zoh, 3),
+            std::to_string(r.switches) + " switches"});
+  for (std::size_t i = 0; i < r.competitors.size(); ++i) {
+    const auto& c = r.competitors[i];
+    t.AddRow({c.name, Fixed(c.rms_mm, 3), Fixed(c.mae_mm, 3), Fixed(c.max_mm, 3),
+              Fixed(c.rms_mm / zoh, 3), Fixed(100.0 * r.chosen_fraction[i].second, 1) + " %"});
   }
   t.Print(std::cout);
-  std::cout << "\nEKF: " << r.harmonics << " harmonics, heart rate " << Fixed(60.0 * r.rate_hz, 1)
-            << " bpm at the end, measurement noise " << Fixed(r.noise_mm, 3) << " mm, "
-            << r.accepted << " accepted, " << r.rejected << " rejected, " << r.initialisations
-            << " initialisation(s), respiration term "
+  std::cout << "\nEKF: " << r.harmonics << " harmonics, heart rate "
+            << (bpm_valid ? Fixed(bpm, 1) + " bpm" : std::string("none (outside 30-220 bpm)"))
+            << " at the end, " << r.reacquisitions << " rate re-acquisition(s), measurement noise "
+            << Fixed(r.noise_mm, 3) << " mm, " << r.accepted << " accepted, " << r.rejected
+            << " rejected, " << r.initialisations << " initialisation(s), respiration term "
             << (r.respiration ? "on (" + Fixed(r.offset_rate_q_mm_s, 2) + " mm/s/√s)" : "off")
             << " [" << RespirationMode(f) << "]\n";
 }
@@ -150,10 +201,20 @@ void AddPredictCommand(CLI::App& app) {
   auto f = std::make_shared<PredictFlags>();
   auto* cmd = app.add_subcommand(
       "predict",
-      "Heartbeat EKF prediction through the imaging delay on a motion trace, against baselines");
+      "Prediction through the imaging delay on a motion trace: the predictor competition the "
+      "tracker ships (heartbeat EKF, autoregressive, baselines) and each competitor alone");
   cmd->add_option("TRACE", f->trace,
-                  "CSV with a header: time column 't' (s) and position columns (mm)")
-      ->required();
+                  "CSV with a header: time column 't' (s) and position columns (mm)");
+  cmd->add_option("--realistic", f->realistic,
+                  "Instead of TRACE, a generated realistic heart trace of this class: regular, "
+                  "ectopic, rate_steps, breathing, noisy, sparse, fast "
+                  "(estimation/realistic_heart_trace.h; --truth truth scores the noise-free "
+                  "motion)");
+  cmd->add_option("--seed", f->seed, "Seed of the --realistic trace (default 1)");
+  cmd->add_option("--duration", f->duration_s, "Length of the --realistic trace, s (default 30)");
+  cmd->add_option("--combination", f->combination,
+                  "What ships: 'best' (the best recent predictor, default) or 'weighted' "
+                  "(inverse-MSE mix)");
   cmd->add_option("--latency", f->latency_s,
                   "Prediction horizon past the newest measurement, s (default 0.1)");
   cmd->add_option("--column", f->column, "Position column (default: the first after 't')");

@@ -568,7 +568,8 @@ SequenceFrame VolumeFrameFields(const Volume& vol) {
   f.fields["Timestamp"] = ii::FormatNumber(vol.timestamp_s());
   f.fields["ImageStatus"] = "OK";
   f.fields["ImageToProbeTransform"] = matrix_text(vol.image_to_probe());
-  f.fields["ImageToProbeTransformStatus"] = "OK";
+  // INVALID when the volume's scanning geometry is unknown (Volume::has_image_to_probe).
+  f.fields["ImageToProbeTransformStatus"] = vol.has_image_to_probe() ? "OK" : "INVALID";
   f.fields["ProbeToReferenceTransform"] = matrix_text(vol.probe_to_reference());
   f.fields["ProbeToReferenceTransformStatus"] = "OK";
   return f;

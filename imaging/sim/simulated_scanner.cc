@@ -550,6 +550,7 @@ SourceFrame SimulatedScanner::Render(double t_s) {
   m.converter.Convert(m.polar, vol);
   vol.set_timestamp_s(t_s);
   vol.set_probe_to_reference(options_.probe_to_world);
+  vol.set_image_to_probe(Eigen::Isometry3d::Identity());  // the image frame is the probe's
 
   FrameGroundTruth truth;
   const Eigen::Vector3d dir_world = base.linear().col(2);

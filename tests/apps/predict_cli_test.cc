@@ -34,6 +34,43 @@ TEST(PredictCli, PhantomJsonHasTheEkfAndEveryBaseline) {
   EXPECT_EQ(j["column"], "POI_z");
   EXPECT_EQ(j["measurements"], 750);
   EXPECT_GT(j["scored"].get<int>(), 600);
+  // ekf_rms_mm is what ships (the competition's output); every competitor alone, and the
+  // fractions of scored measurements each drove the output (they sum to 1).
+  EXPECT_DOUBLE_EQ(j["ekf_rms_mm"].get<double>(), j["shipped"]["rms_mm"].get<double>());
+  double chosen = 0.0;
+  for (const char* c : {"heartbeat_ekf", "autoregressive", "zero_order_hold",
+                        "linear_extrapolation", "constant_velocity_kf"}) {
+    EXPECT_GT(j["competitors"][c]["rms_mm"].get<double>(), 0.0) << c;
+    chosen += j["chosen"][c].get<double>();
+  }
+  EXPECT_NEAR(chosen, 1.0, 1e-9);
+  EXPECT_DOUBLE_EQ(j["competitors"]["zero_order_hold"]["rms_mm"].get<double>(), zoh);
+  // The phantom beats at 71.5 bpm (assumed 20 Hz sampling): inside the band.
+  EXPECT_NEAR(j["ekf"]["heart_rate_bpm"].get<double>(), 71.5, 5.0);
+}
+
+// A generated realistic trace (ectopic beats), scored against its noise-free motion: the
+// shipped output beats the zero-order hold; the heart rate is null when the EKF holds none.
+TEST(PredictCli, RealisticTraceShipsTheBestPredictor) {
+  const RunResult r =
+      RunCli("predict --realistic ectopic --seed 7 --truth truth --latency 0.1 --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_LT(j["ekf_rms_mm"].get<double>(),
+            j["baselines"]["zero_order_hold"]["rms_mm"].get<double>());
+  const auto& hr = j["ekf"]["heart_rate_bpm"];
+  EXPECT_TRUE(hr.is_null() || (hr.get<double>() >= 30.0 && hr.get<double>() <= 220.0));
+  const RunResult text = RunCli("predict --realistic fast --duration 12");
+  ASSERT_EQ(text.rc, 0) << text.err;
+  for (const char* part :
+       {"shipped (competition)", "autoregressive", "heartbeat_ekf", "rate re-acquisition"})
+    ExpectContains(text.out, part);
+  const RunResult bad = RunCli("predict --realistic nope");
+  EXPECT_NE(bad.rc, 0);
+  ExpectContains(bad.err, "unknown class 'nope'");
+  const RunResult none = RunCli("predict --json");
+  EXPECT_NE(none.rc, 0);
+  ExpectContains(none.err, "TRACE");
 }
 
 TEST(PredictCli, SyntheticTraceAtTheVolumeRateMeetsTheIssueFigure) {

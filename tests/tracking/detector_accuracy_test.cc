@@ -152,6 +152,28 @@ TEST(DetectorAccuracy, QuantilesAndOptions) {
   EXPECT_THROW(RunDetectorAccuracy(o), std::invalid_argument);
 }
 
+// The independent generator's classes in the harness: an oblique catheter in a volume without
+// beam geometry is found, the catheter-free one is not, and the per-angle volumes know their
+// beams or not as their names say.
+TEST(DetectorAccuracy, IndependentClassesRunInTheHarness) {
+  ECHOSERVO_RELEASE_SUITE_ONLY("the detector's paths run in IndependentVolumes");
+  const auto r = RunHarness({"beam_60_unknown", "indep_free"}, false, false, false, 1);
+  ASSERT_EQ(r.classes.size(), 2u);
+  const MethodStats* fast = r.classes[0].Method("fast");
+  ASSERT_TRUE(fast);
+  Print(*fast);
+  EXPECT_EQ(fast->detected, 1);
+  EXPECT_LT(fast->angle_deg.median, 0.5);
+  EXPECT_LT(fast->tip_mm.median, 0.5);
+  EXPECT_LT(std::abs(fast->tip_along_mm.median), 0.5);
+  ASSERT_TRUE(r.classes[1].Method("fast"));
+  EXPECT_EQ(r.classes[1].Method("fast")->false_detections, 0);
+  EXPECT_TRUE(
+      MakeAccuracyVolume(FindVolumeClass("beam_40"), 0, 1, false, {}).volume.has_image_to_probe());
+  EXPECT_FALSE(MakeAccuracyVolume(FindVolumeClass("beam_40_unknown"), 0, 1, false, {})
+                   .volume.has_image_to_probe());
+}
+
 TEST(DetectorAccuracy, VolumesAreReproducibleAndSpineNeedsItsFile) {
   const auto& cls = FindVolumeClass("wide_poses");
   const auto a = MakeAccuracyVolume(cls, 1, 7, false, {});

@@ -30,6 +30,7 @@ imaging::Volume Render(const Scene& sc) {
   g.spacing_mm = Eigen::Vector3d(0.5, 0.5, 0.4);
   g.origin_mm = Eigen::Vector3d(-20, -10, 50);
   auto v = imaging::Volume::Create(g, 10);
+  v.set_image_to_probe(Eigen::Isometry3d::Identity());  // the beams are known
   for (double s = 0; s <= sc.tip; s += 0.1) {
     const Eigen::Vector3d a = sc.p0 + s * sc.dir;
     const Eigen::Vector3d b = a.normalized();  // beam from the apex (origin)
@@ -113,6 +114,69 @@ TEST(BeamDirection, RadiatesFromTheProbeApex) {
   image_to_probe.translation() = Eigen::Vector3d(0, 0, 10);  // apex at image z = −10
   v.set_image_to_probe(image_to_probe);
   EXPECT_TRUE(BeamDirectionAt(v, Eigen::Vector3d(0, 0, 0)).isApprox(Eigen::Vector3d::UnitZ()));
+}
+
+TEST(BeamGeometry, KnownOnlyWhenTheVolumeOrTheCallerSaysSo) {
+  imaging::VolumeGeometry g;
+  g.dims = Eigen::Vector3i(4, 4, 4);
+  auto v = imaging::Volume::Create(g);
+  EXPECT_FALSE(v.has_image_to_probe());
+  EXPECT_FALSE(BeamGeometry::FromVolume(v).known());
+  EXPECT_EQ(BeamGeometry::FromVolume(v).At(Eigen::Vector3d(1, 2, 3)), Eigen::Vector3d::Zero());
+  Eigen::Isometry3d image_to_probe = Eigen::Isometry3d::Identity();
+  image_to_probe.translation() = Eigen::Vector3d(0, 0, 10);  // apex at image z = −10
+  v.set_image_to_probe(image_to_probe);
+  EXPECT_TRUE(v.has_image_to_probe());
+  const BeamGeometry b = BeamGeometry::FromVolume(v);
+  ASSERT_EQ(b.kind, BeamGeometry::Kind::kApex);
+  EXPECT_TRUE(b.At(Eigen::Vector3d(3, 0, -6)).isApprox(Eigen::Vector3d(0.6, 0, 0.8)));
+  // A given apex: every beam from it; parallel beams: one direction everywhere.
+  EXPECT_TRUE(BeamGeometry::FromApex(Eigen::Vector3d(1, 1, 1))
+                  .At(Eigen::Vector3d(1, 4, 5))
+                  .isApprox(Eigen::Vector3d(0, 0.6, 0.8)));
+  EXPECT_TRUE(BeamGeometry::Parallel(Eigen::Vector3d(0, 0, 2))
+                  .At(Eigen::Vector3d(7, -3, 1))
+                  .isApprox(Eigen::Vector3d::UnitZ()));
+  testing::ExpectContains(
+      testing::InvalidArgumentMessage([] { BeamGeometry::Parallel(Eigen::Vector3d::Zero()); }),
+      "non-zero");
+  testing::ExpectContains(testing::InvalidArgumentMessage(
+                              [] { BeamGeometry::FromApex(Eigen::Vector3d(0, std::nan(""), 0)); }),
+                          "finite");
+}
+
+// A symmetric tube (a bright ring cross-section, as a volume compounded from many probe poses
+// images it) without beam geometry: the fit is the centre line, no side preferred.
+TEST(EchoAxisFit, UnknownBeamsGiveTheCentreLineOfASymmetricTube) {
+  imaging::VolumeGeometry g;
+  g.dims = Eigen::Vector3i(90, 40, 40);
+  g.spacing_mm = Eigen::Vector3d(0.5, 0.45, 0.4);
+  g.origin_mm = Eigen::Vector3d(-20, -9, 52);
+  auto v = imaging::Volume::Create(g, 10);
+  const Eigen::Vector3d p0(-15.0, 0.17, 60.23),
+      dir = Eigen::Vector3d(1.0, 0.12, -0.08).normalized();
+  for (int k = 0; k < g.dims.z(); ++k)
+    for (int j = 0; j < g.dims.y(); ++j)
+      for (int i = 0; i < g.dims.x(); ++i) {
+        const Eigen::Vector3d p = v.IndexToPhysical(Eigen::Vector3d(i, j, k)) - p0;
+        const double s = p.dot(dir), r = (p - s * dir).norm();
+        if (s < 0 || s > 35) continue;
+        const double ring = std::exp(-0.5 * std::pow((r - 1.25) / 0.35, 2));  // wall at R
+        v.at(i, j, k) = static_cast<std::uint8_t>(10 + 240 * ring);
+      }
+  ASSERT_FALSE(v.has_image_to_probe());
+  const auto fit = FitEchoAxis(v, Line3{p0 + Eigen::Vector3d(0, 0.8, -0.6), dir}, 10.0, {});
+  ASSERT_TRUE(fit.has_value());
+  const Line3 truth{p0, dir};
+  EXPECT_LT(AngleBetweenLines(fit->axis, truth) / kDeg, 0.2);
+  EXPECT_LT(PointToLineDistance(fit->axis, p0 + 5.0 * dir), 0.1);
+  EXPECT_LT(PointToLineDistance(fit->axis, p0 + 30.0 * dir), 0.1);
+  // The same volume told its beams come from above: the near-wall model shifts the axis by
+  // the sheath radius away from the (upper) near wall, the side bias the unknown case avoids.
+  const auto biased =
+      FitEchoAxis(v, Line3{p0, dir}, 10.0, {}, BeamGeometry::Parallel(Eigen::Vector3d::UnitZ()));
+  ASSERT_TRUE(biased.has_value());
+  EXPECT_GT(PointToLineDistance(biased->axis, p0 + 15.0 * dir), 0.5);
 }
 
 }  // namespace

@@ -1,0 +1,169 @@
+// The online predictor competition (estimation/predictor_competition.h), the EKF's rate
+// band and re-acquisition (estimation/heartbeat_ekf.h), on realistic generated traces
+// (estimation/realistic_heart_trace.h, seeds not used while tuning: 1–3 were) and on every
+// real trace in data/ (phantom_20hz.csv, respiration/*.csv, every position column).
+//
+// Margins: an RMS over n_eff independent errors has a relative standard error of about
+// 1/√(2 n_eff); prediction errors are correlated over about a second (a beat, or a
+// breathing excursion), so n_eff = the scored span in seconds, and two standard errors
+// give a relative margin √2/√n_eff.
+#include "estimation/predictor_competition.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "estimation/prediction_eval.h"
+#include "estimation/realistic_heart_trace.h"
+#include "tests/estimation/predictor_test_util.h"
+#include "tests/test_util/expect_error.h"
+#include "tests/test_util/sanitizers.h"
+
+namespace echoservo::estimation {
+namespace {
+
+using echoservo::testing::ExpectContains;
+using echoservo::testing::InvalidArgumentMessage;
+
+double Margin(const PredictionRun& r) {
+  const double span_s = static_cast<double>(r.scored) / r.measurement_rate_hz;
+  return std::sqrt(2.0) / std::sqrt(std::max(span_s, 1.0));
+}
+
+// Shipped ≤ (1 + margin) × every baseline (so also ≤ the zero-order hold).
+void ExpectNoWorseThanBaselines(const PredictionRun& r, const std::string& what) {
+  const double m = Margin(r);
+  for (const auto& b : r.baselines)
+    EXPECT_LE(r.shipped.rms_mm, (1.0 + m) * b.rms_mm) << what << ": vs " << b.name;
+}
+
+TEST(HeartbeatEkfBand, RateStaysInBandThroughStepsEctopicsAndOutliers) {
+  ECHOSERVO_RELEASE_SUITE_ONLY("statistical: three 30 s traces through the EKF");
+  for (const char* cls : {"ectopic", "rate_steps", "noisy"}) {
+    const MotionTrace m = GenerateRealisticHeartTrace(RealisticHeartClass(cls, 21));
+    HeartbeatEkf ekf;
+    for (std::size_t i = 0; i < m.size(); ++i) {
+      ekf.Process(m.t_s[i], m.position_mm[i]);
+      if (!ekf.initialised()) continue;
+      ASSERT_GE(ekf.rate_hz(), 0.5) << cls << " at " << m.t_s[i];
+      ASSERT_LE(ekf.rate_hz(), 220.0 / 60.0) << cls << " at " << m.t_s[i];
+      ASSERT_TRUE(std::isfinite(ekf.Predict(m.t_s[i] + 0.1))) << cls;
+    }
+  }
+}
+
+TEST(HeartbeatEkfBand, ReacquiresTheRateAfterAJump) {
+  // 60 → 150 bpm at 12 s, no wander: the filter's random walk cannot follow a 1.5 Hz
+  // jump; re-acquisition must find the new rate from the data.
+  RealisticHeartOptions o = RealisticHeartClass("regular", 5);
+  o.heart_bpm = 60.0;
+  o.hrv_bpm = 0.0;
+  o.rsa_bpm = 0.0;
+  o.rate_step_bpm = 90.0;
+  o.rate_step_at_s = 12.0;
+  o.duration_s = 24.0;
+  const MotionTrace m = GenerateRealisticHeartTrace(o);
+  HeartbeatEkfOptions eo;
+  eo.harmonics = 6;  // fixed: the test is about the rate
+  HeartbeatEkf ekf(eo);
+  for (std::size_t i = 0; i < m.size(); ++i) ekf.Process(m.t_s[i], m.position_mm[i]);
+  EXPECT_GE(ekf.reacquisitions() + ekf.initialisations(), 2u);
+  ASSERT_TRUE(ekf.initialised());
+  // Within 5 %: the rate of the last beats (RSA and wander off, the beat is 150 bpm).
+  EXPECT_NEAR(60.0 * ekf.rate_hz(), 150.0, 7.5);
+}
+
+TEST(PredictorCompetition, ShipsNoWorseThanAnyBaselineOnRealisticClasses) {
+  ECHOSERVO_RELEASE_SUITE_ONLY("statistical: seven 30 s traces, every competitor");
+  std::vector<double> ratios;
+  for (const std::string& cls : RealisticHeartClasses()) {
+    const MotionTrace m = GenerateRealisticHeartTrace(RealisticHeartClass(cls, 11));
+    PredictionRunOptions o;
+    const PredictionRun r = RunPrediction(m, o);
+    ExpectNoWorseThanBaselines(r, cls);
+    ratios.push_back(r.shipped.rms_mm / r.baselines.front().rms_mm);
+    double chosen = 0.0;
+    for (const auto& [name, f] : r.chosen_fraction) chosen += f;
+    EXPECT_NEAR(chosen, 1.0, 1e-9) << cls;
+  }
+  std::nth_element(ratios.begin(), ratios.begin() + 3, ratios.end());
+  EXPECT_LE(ratios[3], 0.85);  // the target, median over the classes
+}
+
+TEST(PredictorCompetition, ShipsNoWorseThanAnyBaselineOnEveryRealTrace) {
+  ECHOSERVO_RELEASE_SUITE_ONLY("statistical: 21 real channels");
+  const std::string data = ECHOSERVO_DATA_DIR;
+  std::vector<std::pair<std::string, std::vector<std::string>>> files = {
+      {data + "/heart_motion/phantom_20hz.csv",
+       {"POI_x", "POI_y", "POI_z", "AP1_x", "AP1_y", "AP1_z", "AP2_x", "AP2_y", "AP2_z", "AP3_x",
+        "AP3_y", "AP3_z"}}};
+  for (const char* f : {"UAC_138.csv", "LAC_222.csv", "UCC_320.csv"})
+    files.push_back({data + "/respiration/" + f, {"x", "y", "z"}});
+  for (const auto& [path, columns] : files) {
+    for (const std::string& c : columns) {
+      const PredictionRun r = RunPrediction(ReadMotionTrace(path, c), PredictionRunOptions{});
+      ExpectNoWorseThanBaselines(r, path + ":" + c);
+      EXPECT_LT(r.switches, r.scored / 20) << path << ":" << c;  // hysteresis: no flapping
+    }
+  }
+}
+
+TEST(PredictorCompetition, ExportsTheChosenPredictorsMotion) {
+  // The phantom at 20 Hz (AR and EKF both good) and a breathing marker (the AR predictor
+  // wins): at every measurement the exported motion reproduces the shipped prediction
+  // 0–latency ahead (the EKF's own model, or a line through the forward prediction).
+  const std::string data = ECHOSERVO_DATA_DIR;
+  for (const auto& [path, column] :
+       {std::pair<std::string, std::string>{testing::PhantomPath(), "AP2_z"},
+        {data + "/respiration/UAC_138.csv", "z"}}) {
+    const MotionTrace m = ReadMotionTrace(path, column);
+    PredictorCompetition c;
+    int with_ekf = 0, with_line = 0;
+    for (std::size_t i = 0; i < std::min<std::size_t>(m.size(), 700); ++i) {
+      c.Update(m.t_s[i], m.position_mm[i]);
+      const FourierMotion motion = c.Motion();
+      ASSERT_NO_THROW(motion.Validate());
+      EXPECT_DOUBLE_EQ(motion.t0_s, m.t_s[i]);
+      EXPECT_GE(motion.valid_until_s, m.t_s[i] + 0.1);
+      const bool ekf = c.chosen() == PredictorCompetition::kEkf && c.ekf().initialised();
+      if (ekf) {
+        ++with_ekf;
+        EXPECT_EQ(motion, c.ekf().Motion());
+      } else {
+        ++with_line;
+        EXPECT_EQ(motion.harmonics(), 0u);
+      }
+      // A line reproduces the chosen predictor (linear over the horizon) to rounding.
+      for (double tau : {0.0, 0.05, 0.1})
+        EXPECT_NEAR(motion.Position(m.t_s[i] + tau), c.Predict(m.t_s[i] + tau), 1e-6)
+            << path << " at " << m.t_s[i] << " + " << tau << " (" << c.chosen_name() << ")";
+    }
+    EXPECT_GT(with_line, 0) << path;
+    const auto& s = c.competitors();
+    EXPECT_EQ(s.size(), 5u);
+    std::size_t chosen = 0;
+    for (const auto& st : s) chosen += st.chosen;
+    EXPECT_EQ(chosen, std::min<std::size_t>(m.size(), 700));
+    (void)with_ekf;
+  }
+}
+
+TEST(PredictorCompetition, RejectsBadInputAndOptions) {
+  PredictorCompetitionOptions o;
+  o.hysteresis = 1.0;
+  ExpectContains(InvalidArgumentMessage([&] { PredictorCompetition{o}; }), "hysteresis");
+  o = {};
+  o.latency_s = -1.0;
+  ExpectContains(InvalidArgumentMessage([&] { PredictorCompetition{o}; }), "latency");
+  PredictorCompetition c;
+  c.Update(0.0, 1.0);
+  ExpectContains(InvalidArgumentMessage([&] { c.Update(0.0, 1.0); }), "strictly increasing");
+  ExpectContains(InvalidArgumentMessage([&] { c.Update(1.0, INFINITY); }), "infinite");
+  EXPECT_DOUBLE_EQ(c.Predict(0.1), 1.0);  // unchanged by the rejected calls
+}
+
+}  // namespace
+}  // namespace echoservo::estimation
