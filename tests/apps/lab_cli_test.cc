@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "tests/test_util/cli_runner.h"
+#include "tests/test_util/sanitizers.h"
 #include "tests/test_util/temp_dir.h"
 #include "tests/test_util/trial_files.h"
 
@@ -106,6 +107,9 @@ TEST(LabCli, CompareJsonHasErrorsParametersAndBreakdown) {
 }
 
 TEST(LabCli, DiagnoseJsonRanksTheMissingEffectFirst) {
+  ECHOSERVO_RELEASE_SUITE_ONLY(
+      "the diagnosis runs under the sanitizers in Diagnose.SeedDataIsAdequateForTheSeedModel; "
+      "this case checks its ranking statistics");
   TempDir dir(kTag);
   RecordDelayed(dir);
   const Result r = RunCli("lab diagnose " + dir.str() + " --json");

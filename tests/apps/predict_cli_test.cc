@@ -10,6 +10,7 @@
 
 #include "tests/test_util/cli_runner.h"
 #include "tests/test_util/expect_error.h"
+#include "tests/test_util/sanitizers.h"
 #include "tests/test_util/temp_dir.h"
 
 namespace echoservo {
@@ -156,6 +157,8 @@ TEST(PredictCli, FolderOrMissingTraceIsNamedWithWhy) {
 }
 
 TEST(PredictCli, MotionLabNamesTheHiddenRespiration) {
+  ECHOSERVO_RELEASE_SUITE_ONLY(
+      "the motion lab runs under the sanitizers in tests/lab; this case checks its statistics");
   TempDir dir("predict_cli", true);
   const std::string trace = dir.str() + "/resp.csv";
   ASSERT_EQ(

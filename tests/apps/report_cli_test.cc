@@ -478,9 +478,15 @@ TEST_F(ReportOnDemoRun, ALogWhoseMotionIsLateBeyondTheOffsetWindowIsRefused) {
   });
   const RunResult r = Report("--em " + ShellQuote(em.string()));
   EXPECT_EQ(r.rc, 1);
-  // Half a beat late at the best offset in the window (measured: registration RMS 3.6 mm,
-  // correlation 0.40).
-  EXPECT_NE(r.err.find("EM log refused: registration RMS "), std::string::npos) << r.err;
+  // Out of step with the tracked tip at every offset in the window: which of the three checks
+  // a late log fails first depends on the run's beat-to-beat rate (measured: registration RMS
+  // 3.6 mm with correlation 0.40 on one run; correlation 0.667 with the registration within
+  // bounds on a slow sanitizer run), but it fails one of them.
+  EXPECT_NE(r.err.find("EM log refused: "), std::string::npos) << r.err;
+  const bool named = r.err.find("registration RMS ") != std::string::npos ||
+                     r.err.find("does not follow the tracked tip") != std::string::npos ||
+                     r.err.find("lies at the edge of the search window") != std::string::npos;
+  EXPECT_TRUE(named) << r.err;
 }
 
 TEST_F(ReportOnDemoRun, AStillSensorIsRefused) {

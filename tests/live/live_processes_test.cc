@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "tests/test_util/cli_runner.h"
+#include "tests/test_util/sanitizers.h"
 #include "tests/test_util/temp_dir.h"
 
 namespace echoservo {
@@ -122,6 +123,9 @@ std::string Detection(const std::string& row) {
 }
 
 TEST(LiveProcesses, ReplayOfARecordedDemoReproducesItsDetectionsAndScoresAgainstItsEmLog) {
+  ECHOSERVO_RELEASE_SUITE_ONLY(
+      "the demo runs under the sanitizers in DemoCli and ReportOnDemoRunSetup, the replay "
+      "reader in StreamCli.RecordReplayAndInfo; this serial case adds their figures");
   const testing::TempDir dir("live_replay", true);
   const fs::path run = dir.path() / "run", replay = dir.path() / "replay";
   // 8 s with a 3-harmonic EKF (it publishes after 20 volumes): long enough for the tip to
@@ -177,6 +181,9 @@ TEST(LiveProcesses, ReplayOfARecordedDemoReproducesItsDetectionsAndScoresAgainst
 }
 
 TEST(LiveProcesses, ADemoKilledMidRunLeavesARunItsReportReads) {
+  ECHOSERVO_RELEASE_SUITE_ONLY(
+      "it checks the files a SIGKILL leaves, not memory; the demo and report paths run under "
+      "the sanitizers in DemoCli and ReportOnDemoRun");
   const testing::TempDir dir("live_kill9", true);
   const fs::path run = dir.path() / "run";
   // Killed once the servo has been following for 3 s (300 rows at 100 Hz on disk), wherever
@@ -220,6 +227,9 @@ TEST(LiveProcesses, ADemoKilledMidRunLeavesARunItsReportReads) {
 // in one and the tracker in the other (scripts/live_two_namespaces.sh). Needs root and
 // network namespaces; skipped where the host has neither.
 TEST(LiveProcesses, ServoAndTrackerInTwoNamespacesThroughAnImpairedLink) {
+  ECHOSERVO_RELEASE_SUITE_ONLY(
+      "the impairment is timing; the servo and tracker processes and their link run under the "
+      "sanitizers in TrackAndServoCloseTheLoopAndTheServoRetractsWhenTheTrackerGoes");
   if (::geteuid() != 0 || RunShell("ip netns add es_probe && ip netns del es_probe").rc != 0)
     GTEST_SKIP() << "needs root and network namespaces";
   const testing::TempDir dir("live_netns", true);

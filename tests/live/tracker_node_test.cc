@@ -9,6 +9,7 @@
 
 #include "imaging/sim/simulated_scanner.h"
 #include "live/sim_scene.h"
+#include "tests/test_util/sanitizers.h"
 
 namespace echoservo::live {
 namespace {
@@ -23,6 +24,9 @@ constexpr int kVolumes = 36;  // 3.5 s
 #endif
 
 TEST(TrackerNode, StaticSceneHasNoHeartbeat) {
+  ECHOSERVO_RELEASE_SUITE_ONLY(
+      "the significance test's no-heartbeat path runs under the sanitizers in "
+      "tests/estimation/heartbeat_significance_test.cc; this case checks its statistics");
   imaging::sim::SimulatedScannerOptions so;  // what `echoservo scanner` serves: nothing moves
   so.rate_hz = kRateHz;
   imaging::sim::SimulatedScanner scanner(so);

@@ -48,6 +48,8 @@ void Print(const MethodStats& m) {
 // The figures on simulated water-tank volumes: median axis error ≤ 0.5°, tip and
 // target ≤ 0.5 mm; full search and tracking mode.
 TEST(DetectorAccuracy, FastDetectorMeetsTheTargetsOnWaterTankVolumes) {
+  ECHOSERVO_RELEASE_SUITE_ONLY(
+      "FastVersusRansac/water_tank runs the same harness on the same class under the sanitizers");
   const auto r = RunHarness({"water_tank"}, true, false, false);
   ASSERT_EQ(r.classes.size(), 1u);
   ASSERT_EQ(r.classes[0].volumes, 4);
