@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <functional>
+#include <initializer_list>
 #include <vector>
 
 #include "tests/test_util/constants.h"
@@ -76,33 +78,47 @@ Errors DetectIn(const IndependentVolumeOptions& o, const RadonDetectorOptions& d
   return e;
 }
 
-// 0–80° to the beam, comet tails (4 copies every 2.5 mm, −6 dB each), known beams (the
-// volume's image-to-probe pose): found in every volume, axis and tip within the bounds.
-TEST(IndependentVolumes, CatheterAtAnyAngleWithCometTailsIsFound) {
-  ECHOSERVO_RELEASE_SUITE_ONLY(
-      "statistical sweep over angles (the detector's paths run elsewhere)");
-  std::vector<double> angle, tip, along;
-  int seed = 1;
-  for (double deg : {0.0, 20.0, 40.0, 60.0, 80.0}) {
+// One catheter per angle (80³ voxels, azimuth 70° × seed, seeds from `first_seed` on),
+// `configure` setting the case's options; each detection is printed under `label` and must
+// be found. Returns the errors of those found.
+std::vector<Errors> SweepAngles(const char* label, std::initializer_list<double> angles_deg,
+                                int first_seed,
+                                const std::function<void(IndependentVolumeOptions&)>& configure) {
+  std::vector<Errors> found;
+  int seed = first_seed;
+  for (double deg : angles_deg) {
     IndependentVolumeOptions o;
     o.size_voxels = 80;
     o.catheter_angle_deg = deg;
     o.catheter_azimuth_deg = 70.0 * seed;
     o.seed = static_cast<std::uint64_t>(seed++);
+    configure(o);
     const Errors e = DetectIn(o);
-    std::printf(
-        "known beams, %2.0f deg: found %d angle %.3f offset %.3f tip %.3f (along %+.3f) "
-        "tube %.2f\n",
-        deg, e.found, e.angle_deg, e.offset_mm, e.tip_mm, e.tip_along_mm, e.tubularity);
-    EXPECT_TRUE(e.found) << deg;
-    if (!e.found) continue;
-    angle.push_back(e.angle_deg);
-    tip.push_back(e.tip_mm);
-    along.push_back(e.tip_along_mm);
+    std::printf("%s, %2.0f deg: found %d angle %.3f offset %.3f tip %.3f (along %+.3f) tube %.2f\n",
+                label, deg, e.found, e.angle_deg, e.offset_mm, e.tip_mm, e.tip_along_mm,
+                e.tubularity);
+    EXPECT_TRUE(e.found) << label << ", " << deg << " deg";
+    if (e.found) found.push_back(e);
   }
-  ASSERT_FALSE(angle.empty());
-  EXPECT_LE(Median(angle), 0.3);
-  EXPECT_LE(Median(tip), 0.3);
+  return found;
+}
+
+double MedianOf(const std::vector<Errors>& errors, double Errors::*field) {
+  std::vector<double> v;
+  for (const Errors& e : errors) v.push_back(e.*field);
+  return Median(v);
+}
+
+// 0–80° to the beam, comet tails (4 copies every 2.5 mm, −6 dB each), known beams (the
+// volume's image-to-probe pose): found in every volume, axis and tip within the bounds.
+TEST(IndependentVolumes, CatheterAtAnyAngleWithCometTailsIsFound) {
+  ECHOSERVO_RELEASE_SUITE_ONLY(
+      "statistical sweep over angles (the detector's paths run elsewhere)");
+  const std::vector<Errors> e = SweepAngles("known beams", {0.0, 20.0, 40.0, 60.0, 80.0}, 1,
+                                            [](IndependentVolumeOptions&) {});
+  ASSERT_FALSE(e.empty());
+  EXPECT_LE(MedianOf(e, &Errors::angle_deg), 0.3);
+  EXPECT_LE(MedianOf(e, &Errors::tip_mm), 0.3);
 }
 
 // The same catheters in volumes that do not know their beams: the tube check judges the comet
@@ -112,28 +128,12 @@ TEST(IndependentVolumes, CatheterAtAnyAngleWithCometTailsIsFound) {
 TEST(IndependentVolumes, UnknownBeamsCatheterAtAnyAngleIsStillFound) {
   ECHOSERVO_RELEASE_SUITE_ONLY(
       "statistical sweep over angles (the detector's paths run elsewhere)");
-  std::vector<double> angle, tip;
-  int seed = 11;
-  for (double deg : {0.0, 20.0, 40.0, 60.0, 80.0}) {
-    IndependentVolumeOptions o;
-    o.size_voxels = 80;
-    o.catheter_angle_deg = deg;
-    o.catheter_azimuth_deg = 70.0 * seed;
-    o.store_image_to_probe = false;
-    o.seed = static_cast<std::uint64_t>(seed++);
-    const Errors e = DetectIn(o);
-    std::printf(
-        "unknown beams, %2.0f deg: found %d angle %.3f offset %.3f tip %.3f (along %+.3f) "
-        "tube %.2f\n",
-        deg, e.found, e.angle_deg, e.offset_mm, e.tip_mm, e.tip_along_mm, e.tubularity);
-    EXPECT_TRUE(e.found) << deg;
-    if (!e.found) continue;
-    angle.push_back(e.angle_deg);
-    tip.push_back(e.tip_mm);
-  }
-  ASSERT_FALSE(angle.empty());
-  EXPECT_LE(Median(angle), 0.3);
-  EXPECT_LE(Median(tip), 0.3);
+  const std::vector<Errors> e =
+      SweepAngles("unknown beams", {0.0, 20.0, 40.0, 60.0, 80.0}, 11,
+                  [](IndependentVolumeOptions& o) { o.store_image_to_probe = false; });
+  ASSERT_FALSE(e.empty());
+  EXPECT_LE(MedianOf(e, &Errors::angle_deg), 0.3);
+  EXPECT_LE(MedianOf(e, &Errors::tip_mm), 0.3);
 }
 
 // The tip pointing away from the transducer: the wire's comet tail runs on beyond the tip along
@@ -141,25 +141,11 @@ TEST(IndependentVolumes, UnknownBeamsCatheterAtAnyAngleIsStillFound) {
 TEST(IndependentVolumes, TipAwayFromTheProbeIsNotLengthenedByTheCometTail) {
   ECHOSERVO_RELEASE_SUITE_ONLY(
       "statistical sweep over angles (the detector's paths run elsewhere)");
-  std::vector<double> along;
-  int seed = 21;
-  for (double deg : {20.0, 50.0, 80.0}) {
-    IndependentVolumeOptions o;
-    o.size_voxels = 80;
-    o.catheter_angle_deg = deg;
-    o.catheter_azimuth_deg = 70.0 * seed;
-    o.tip_towards_probe = false;
-    o.seed = static_cast<std::uint64_t>(seed++);
-    const Errors e = DetectIn(o);
-    std::printf(
-        "tip away, %2.0f deg: found %d angle %.3f offset %.3f tip %.3f (along %+.3f) "
-        "tube %.2f\n",
-        deg, e.found, e.angle_deg, e.offset_mm, e.tip_mm, e.tip_along_mm, e.tubularity);
-    EXPECT_TRUE(e.found) << deg;
-    if (e.found) along.push_back(e.tip_along_mm);
-  }
-  ASSERT_FALSE(along.empty());
-  EXPECT_LT(std::abs(Median(along)), 0.3);
+  const std::vector<Errors> e =
+      SweepAngles("tip away", {20.0, 50.0, 80.0}, 21,
+                  [](IndependentVolumeOptions& o) { o.tip_towards_probe = false; });
+  ASSERT_FALSE(e.empty());
+  EXPECT_LT(std::abs(MedianOf(e, &Errors::tip_along_mm)), 0.3);
 }
 
 // Parallel beams (a linear probe) given by the caller for a volume without a pose.
