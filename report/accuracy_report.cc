@@ -491,10 +491,17 @@ AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
     m.error_mm.push_back((tip - *goal).norm());
   }
   if (m.error_mm.empty()) {
-    throw std::invalid_argument("accuracy: no valid EM sample falls within the target series (" +
-                                m.target_source + ") after the clock offset of " +
-                                Fix(m.alignment.em_time_offset_s, 3) + " s in the window " +
-                                WindowText(m));
+    std::string span = "no valid EM sample";
+    if (!em_points.t_s.empty()) {
+      span = "the EM log covers " + Fix(em_points.t_s.front() + m.alignment.em_time_offset_s, 2) +
+             "–" + Fix(em_points.t_s.back() + m.alignment.em_time_offset_s, 2) + " s";
+    }
+    throw std::invalid_argument(
+        "accuracy: no valid EM sample falls within the target series (" + m.target_source +
+        ", " + Fix(target.t_s.empty() ? kNaN : target.t_s.front(), 2) + "–" +
+        Fix(target.t_s.empty() ? kNaN : target.t_s.back(), 2) + " s) after the clock offset of " +
+        Fix(m.alignment.em_time_offset_s, 3) + " s in the window " + WindowText(m) + "; " + span +
+        " (--from moves the window's start)");
   }
   m.rms_mm = Rms(m.error_mm);
   double sum = 0.0;
