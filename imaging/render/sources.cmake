@@ -1,6 +1,8 @@
 # Sources of imaging/render (appended to IMAGING_SOURCES).
-# The 2D slice/MIP panel uses OpenCV; the 3D view VTK rendering, which needs an X server
-# here (no OSMesa/EGL), hence X11 to check the display before any VTK window exists.
+# The 2D slice/MIP panel is drawn with OpenCV and written with VTK's PNG writer (png_file:
+# OpenCV's imgcodecs would load ~100 more shared libraries into every process); the 3D view
+# uses VTK rendering, which needs an X server here (no OSMesa/EGL), hence X11 to check the
+# display before any VTK window exists.
 # find_package(VTK) replaces VTK_LIBRARIES: keep what the other parts found and add ours,
 # so that vtk_module_autoinit (end of imaging/CMakeLists.txt) sees them all.
 set(_render_vtk_before ${VTK_LIBRARIES})
@@ -12,9 +14,10 @@ list(REMOVE_DUPLICATES VTK_LIBRARIES)
 find_package(X11 REQUIRED)
 
 list(APPEND IMAGING_SOURCES
+  render/png_file.cc
   render/volume_render.cc
   render/volume_render_3d.cc
   render/x_display.cc)
 list(APPEND IMAGING_PRIVATE_DEPS
-  opencv_core opencv_imgproc opencv_imgcodecs
+  opencv_core opencv_imgproc
   ${ECHOSERVO_RENDER_VTK_LIBRARIES} X11::X11)

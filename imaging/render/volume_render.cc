@@ -3,16 +3,17 @@
 #include "imaging/render/volume_render.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "imaging/render/png_file.h"
 #include "imaging/render/render_overlays_check.h"
 
 namespace echoservo::imaging {
@@ -422,13 +423,14 @@ void RenderSlicesPng(const Volume& volume, const RenderOverlays& overlays,
   PutText(canvas, bar_label, {bx0 + (bar_px - TextWidth(bar_label)) / 2, by - 10}, kText);
 
   if (png.has_parent_path()) std::filesystem::create_directories(png.parent_path());
-  bool ok = false;
-  try {
-    ok = cv::imwrite(png.string(), canvas);
-  } catch (const cv::Exception& e) {
-    throw std::runtime_error("cannot write " + png.string() + ": " + e.what());
-  }
-  if (!ok) throw std::runtime_error("cannot write " + png.string());
+  assert(canvas.type() == CV_8UC3 && canvas.isContinuous());
+  cv::Mat rgb;
+  cv::cvtColor(canvas, rgb, cv::COLOR_BGR2RGB);
+  RgbImage image;
+  image.width = rgb.cols;
+  image.height = rgb.rows;
+  image.rgb.assign(rgb.data, rgb.data + rgb.total() * 3);
+  WritePngRgb(png, image);
 }
 
 Volume MakeRenderPhantom(const PhantomSpec& spec) {

@@ -6,11 +6,11 @@
 #include <cstdlib>
 #include <filesystem>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <thread>
 
 #include "imaging/io/volume_io.h"
+#include "imaging/render/png_file.h"
 #include "imaging/render/volume_render.h"
 #include "tests/test_util/cli_runner.h"
 #include "tests/test_util/expect_error.h"
@@ -25,6 +25,18 @@ using echoservo::testing::RunResult;
 using echoservo::testing::RunShell;
 using echoservo::testing::ShellQuote;
 using echoservo::testing::TempDir;
+
+// A written panel as OpenCV BGR, the order the pixel checks below use.
+cv::Mat ReadBgr(const std::filesystem::path& png) {
+  const RgbImage rgb = ReadPngRgb(png);
+  cv::Mat bgr(rgb.height, rgb.width, CV_8UC3);
+  for (int y = 0; y < rgb.height; ++y) {
+    for (int x = 0; x < rgb.width; ++x) {
+      bgr.at<cv::Vec3b>(y, x) = cv::Vec3b(rgb.At(x, y, 2), rgb.At(x, y, 1), rgb.At(x, y, 0));
+    }
+  }
+  return bgr;
+}
 
 const PhantomSpec kSpec;  // line (4,5,6)→(14,12,30) mm, sphere (17,10,38) r 4 mm
 
@@ -58,7 +70,7 @@ TEST(RenderSlices, WritesPngOfTheLayoutSize) {
   const Volume v = MakeRenderPhantom();
   const auto png = dir.path() / "sub" / "slices.png";
   RenderSlicesPng(v, {}, png);
-  const cv::Mat img = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat img = ReadBgr(png);
   ASSERT_FALSE(img.empty());
   const SlicePanelLayout layout = ComputeSlicePanelLayout(v, {});
   EXPECT_EQ(img.cols, layout.image_width);
@@ -95,7 +107,7 @@ TEST(RenderSlices, MipShowsTheLineWhereItProjects) {
   const Volume v = MakeRenderPhantom();
   const auto png = dir.path() / "mip.png";
   RenderSlicesPng(v, {}, png);
-  const cv::Mat img = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat img = ReadBgr(png);
   ASSERT_FALSE(img.empty());
   const SlicePanelLayout layout = ComputeSlicePanelLayout(v, {});
   for (int panel = 3; panel < 6; ++panel) {
@@ -135,7 +147,7 @@ TEST(RenderSlices, OverlayMarkersAtTheProjectedPoints) {
   o.title = "overlay test";
   const auto png = dir.path() / "overlay.png";
   RenderSlicesPng(v, o, png);
-  const cv::Mat img = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat img = ReadBgr(png);
   ASSERT_FALSE(img.empty());
   const SlicePanelLayout layout = ComputeSlicePanelLayout(v, o);
   // Slices go through the tip by default.
@@ -181,7 +193,7 @@ TEST(RenderSlices, LargeVolumeIsScaledDown) {
   const Volume v = MakeRenderPhantom(spec);
   const auto png = dir.path() / "large.png";
   RenderSlicesPng(v, {}, png);
-  const cv::Mat img = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat img = ReadBgr(png);
   ASSERT_FALSE(img.empty());
   EXPECT_LT(img.cols, 1400);
   EXPECT_LT(img.rows, 1000);
@@ -211,7 +223,7 @@ TEST(RenderIsosurface, InProcessWhenADisplayIsAvailable) {
   options.width = 320;
   options.height = 240;
   RenderIsosurfacePng(MakeRenderPhantom(), 128, o, png, options);
-  const cv::Mat img = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat img = ReadBgr(png);
   ASSERT_FALSE(img.empty());
   EXPECT_EQ(img.cols, 320);
   EXPECT_EQ(img.rows, 240);
@@ -226,7 +238,7 @@ TEST(RenderCli, PhantomSlicesPng) {
                         " --tip 14,12,30 --target 17,10,38 --axis 4,5,6,10,7,24");
   ASSERT_EQ(r.rc, 0) << r.err;
   ExpectContains(r.out, "wrote");
-  const cv::Mat img = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat img = ReadBgr(png);
   ASSERT_FALSE(img.empty());
   RenderOverlays o;
   o.tip_mm = Eigen::Vector3d(14, 12, 30);
@@ -303,7 +315,7 @@ TEST(RenderCli, ThreeDUnderXvfb) {
     std::this_thread::sleep_for(std::chrono::milliseconds(500 * (attempt + 1)));
   }
   ASSERT_EQ(r.rc, 0) << r.out << r.err;
-  const cv::Mat img = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat img = ReadBgr(png);
   ASSERT_FALSE(img.empty());
   EXPECT_EQ(img.cols, 640);
   EXPECT_EQ(img.rows, 480);
@@ -335,7 +347,7 @@ TEST(RenderCli, ReadsAVolumeFile) {
                                       " --tip 14,12,30 --out " +
                                       echoservo::testing::ShellQuote(png.string()));
   ASSERT_EQ(r.rc, 0) << r.err;
-  const cv::Mat img = cv::imread(png.string(), cv::IMREAD_COLOR);
+  const cv::Mat img = ReadBgr(png);
   ASSERT_FALSE(img.empty());
   RenderOverlays o;
   o.tip_mm = Eigen::Vector3d(14, 12, 30);
