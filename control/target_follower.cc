@@ -54,6 +54,8 @@ void FollowerConfig::Validate() const {
     bad("response_min_volumes", "must be in [3, 10000]");
   if (!(response_min_gain >= 0 && response_min_gain < 1))
     bad("response_min_gain", "must be in [0, 1)");
+  if (!(history_capacity >= 16 && history_capacity <= 1000000))
+    bad("history_capacity", "must be in [16, 1000000] samples");
 }
 
 std::string ToString(FollowerMode mode) {
@@ -72,16 +74,21 @@ std::string ToString(FollowerMode mode) {
   return "unknown";
 }
 
-TargetFollower::TargetFollower(FollowerConfig config) : config_(config) { config_.Validate(); }
+TargetFollower::TargetFollower(FollowerConfig config) : config_(config) {
+  config_.Validate();
+  tip_ring_.resize(config_.history_capacity);
+  response_ring_.resize(256);
+}
 
 void TargetFollower::Enable(double now_s) {
   if (faults_ & follower_fault::kImageNotResponding) {
     // The operator re-arms the check: judged afresh on volumes from now on.
-    response_window_.clear();
+    response_head_ = response_count_ = 0;
     response_ = {};
   }
   faults_ &= ~(follower_fault::kStopRequested | follower_fault::kRetracted |
-               follower_fault::kImageNotResponding);
+               follower_fault::kImageNotResponding | follower_fault::kDeadlineHold |
+               follower_fault::kDeadlineRetract);
   if (has_estimate_ && now_s - last_estimate_s_ <= config_.stale_after_s) {
     mode_ = FollowerMode::kFollowing;
   } else {
@@ -102,15 +109,25 @@ void TargetFollower::SetStandoff(double standoff_mm) {
 }
 
 double TargetFollower::TipAt(double t_s) const {
-  if (tip_history_.empty()) return tip_mm_;
-  if (t_s <= tip_history_.front().first) return tip_history_.front().second;
-  if (t_s >= tip_history_.back().first) return tip_history_.back().second;
-  const auto hi =
-      std::lower_bound(tip_history_.begin(), tip_history_.end(), t_s,
-                       [](const std::pair<double, double>& p, double t) { return p.first < t; });
-  const auto lo = hi - 1;
-  const double f = (t_s - lo->first) / std::max(1e-12, hi->first - lo->first);
-  return lo->second + f * (hi->second - lo->second);
+  if (tip_count_ == 0) return tip_mm_;
+  const auto& front = TipSample(0);
+  const auto& back = TipSample(tip_count_ - 1);
+  if (t_s <= front.first) return front.second;
+  if (t_s >= back.first) return back.second;
+  // The first sample at or after t_s (lower bound): front < t_s ≤ back, so 0 < hi < count.
+  std::size_t lo_i = 0, hi_i = tip_count_ - 1;
+  while (hi_i - lo_i > 1) {
+    const std::size_t mid = lo_i + (hi_i - lo_i) / 2;
+    if (TipSample(mid).first < t_s) {
+      lo_i = mid;
+    } else {
+      hi_i = mid;
+    }
+  }
+  const auto& lo = TipSample(hi_i - 1);
+  const auto& hi = TipSample(hi_i);
+  const double f = (t_s - lo.first) / std::max(1e-12, hi.first - lo.first);
+  return lo.second + f * (hi.second - lo.second);
 }
 
 bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
@@ -184,36 +201,51 @@ bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
   ++counters_.accepted;
   faults_ &= ~(follower_fault::kStaleEstimate | follower_fault::kRejectedEstimate);
   if (mode_ == FollowerMode::kHolding &&
-      !(faults_ & (follower_fault::kStopRequested | follower_fault::kImageNotResponding)))
+      !(faults_ & (follower_fault::kStopRequested | follower_fault::kImageNotResponding |
+                   follower_fault::kDeadlineHold)))
     mode_ = FollowerMode::kFollowing;
   if (config_.check_response) CheckResponse(e.acquired_s, e.tip_axis_mm, now_s);
   return true;
 }
 
+void TargetFollower::PushResponse(const ResponsePoint& p) {
+  if (response_count_ == response_ring_.size()) {
+    // Full: twice the room, oldest first (allocates; only while windows keep growing).
+    std::vector<ResponsePoint> grown(2 * response_ring_.size());
+    for (std::size_t i = 0; i < response_count_; ++i) grown[i] = ResponseAt(i);
+    response_ring_.swap(grown);
+    response_head_ = 0;
+  }
+  response_ring_[(response_head_ + response_count_) % response_ring_.size()] = p;
+  ++response_count_;
+}
+
 void TargetFollower::CheckResponse(double acquired_s, double tip_axis_mm, double now_s) {
-  response_window_.push_back(
-      {acquired_s, TipAt(acquired_s - config_.response_delay_s), tip_axis_mm});
-  while (!response_window_.empty() &&
-         response_window_.front().acquired_s < acquired_s - config_.response_window_s)
-    response_window_.pop_front();
+  PushResponse({acquired_s, TipAt(acquired_s - config_.response_delay_s), tip_axis_mm});
+  while (response_count_ > 0 && ResponseAt(0).acquired_s < acquired_s - config_.response_window_s) {
+    response_head_ = (response_head_ + 1) % response_ring_.size();
+    --response_count_;
+  }
   // Least squares of s on x over the window (two passes: the means, then the sums).
-  const auto n = static_cast<double>(response_window_.size());
+  const auto n = static_cast<double>(response_count_);
   double mx = 0.0, ms = 0.0;
-  for (const ResponsePoint& p : response_window_) {
+  for (std::size_t i = 0; i < response_count_; ++i) {
+    const ResponsePoint& p = ResponseAt(i);
     mx += p.tip_x_mm;
     ms += p.tip_s_mm;
   }
   mx /= n;
   ms /= n;
   double sxx = 0.0, sss = 0.0, sxs = 0.0;
-  for (const ResponsePoint& p : response_window_) {
+  for (std::size_t i = 0; i < response_count_; ++i) {
+    const ResponsePoint& p = ResponseAt(i);
     const double dx = p.tip_x_mm - mx, ds = p.tip_s_mm - ms;
     sxx += dx * dx;
     sss += ds * ds;
     sxs += dx * ds;
   }
   ResponseCheck& r = response_;
-  r.volumes = response_window_.size();
+  r.volumes = response_count_;
   r.excitation_mm = std::sqrt(sxx / n);
   r.gain = sxx > 0 ? sxs / sxx : 0.0;
   r.gain_se =
@@ -244,11 +276,59 @@ void TargetFollower::Hold(double now_s, std::uint32_t fault) {
     mode_ = FollowerMode::kHolding;
 }
 
+void TargetFollower::DeadlineHold(double now_s) {
+  if (mode_ == FollowerMode::kDisabled) {
+    faults_ |= follower_fault::kDeadlineHold;
+    return;
+  }
+  Hold(now_s, follower_fault::kDeadlineHold);
+}
+
+void TargetFollower::DeadlineCleared(double now_s) {
+  if (!(faults_ & follower_fault::kDeadlineHold)) return;
+  faults_ &= ~follower_fault::kDeadlineHold;
+  if (mode_ != FollowerMode::kHolding ||
+      (faults_ & (follower_fault::kStopRequested | follower_fault::kImageNotResponding)))
+    return;
+  const bool stale = !has_estimate_ || now_s - last_estimate_s_ > config_.stale_after_s ||
+                     !estimate_.target_motion.ValidAt(now_s);
+  if (!stale) {
+    mode_ = FollowerMode::kFollowing;
+  } else if (has_estimate_ && !(faults_ & follower_fault::kStaleEstimate)) {
+    // The estimate went stale during the hold: the hold goes on for that reason (and
+    // retracts at retract_after_s from its start, as any hold).
+    ++counters_.stale_events;
+    faults_ |= follower_fault::kStaleEstimate;
+  }
+}
+
+void TargetFollower::DeadlineRetract(double now_s) {
+  faults_ |= follower_fault::kDeadlineRetract;
+  faults_ &= ~follower_fault::kDeadlineHold;
+  if (mode_ == FollowerMode::kDisabled || mode_ == FollowerMode::kStopped ||
+      mode_ == FollowerMode::kRetracting)
+    return;
+  Hold(now_s, 0);  // from following: hold_mm_ = the tip now
+  // The retract motion (Raw) starts retract_after_s after hold_since_s_: now.
+  hold_since_s_ = std::min(hold_since_s_, now_s - config_.retract_after_s);
+  mode_ = FollowerMode::kRetracting;
+}
+
 void TargetFollower::Update(double now_s, double tip_mm) {
   tip_mm_ = tip_mm;
-  tip_history_.emplace_back(now_s, tip_mm);
-  while (tip_history_.size() > 2 && tip_history_.front().first < now_s - 1.0)
-    tip_history_.pop_front();
+  // The ring keeps the newest history_capacity samples; older ones than 1 s are dropped (the
+  // newest two always stay).
+  const std::size_t capacity = tip_ring_.size();
+  if (tip_count_ == capacity) {
+    tip_head_ = (tip_head_ + 1) % capacity;
+    --tip_count_;
+  }
+  tip_ring_[(tip_head_ + tip_count_) % capacity] = {now_s, tip_mm};
+  ++tip_count_;
+  while (tip_count_ > 2 && TipSample(0).first < now_s - 1.0) {
+    tip_head_ = (tip_head_ + 1) % capacity;
+    --tip_count_;
+  }
   if (mode_ == FollowerMode::kDisabled) hold_mm_ = tip_mm;
   if (mode_ != FollowerMode::kDisabled && mode_ != FollowerMode::kStopped) {
     const bool stale = !has_estimate_ || now_s - last_estimate_s_ > config_.stale_after_s ||

@@ -12,15 +12,20 @@
 // response_min_gain the image is not answering the catheter: fault kImageNotResponding
 // (latched until Enable), hold, then retract; c and k are frozen while it is active and c
 // never moves more than max_offset_change_mm from its first measurement.
+// Missed deadlines (control/deadline_watchdog.h): DeadlineHold holds the tip (fault
+// kDeadlineHold) until DeadlineCleared, DeadlineRetract starts the retract motion at once (fault
+// kDeadlineRetract, until Enable). Update and Evaluate never allocate: the tip history is a
+// ring of history_capacity samples allocated by the constructor; Accept allocates only when
+// the response window holds more volumes than ever before.
 // Errors: std::invalid_argument for a bad config or a standoff outside [0, 30] mm.
 // Details: docs/control.md#following-the-target-controltarget_followerh
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
-#include <deque>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "control/trajectory.h"
 #include "estimation/fourier_motion.h"
@@ -61,6 +66,9 @@ struct FollowerConfig {
   double response_max_gain_se = 0.1;  // judge once tip_noise_mm/√Σ(x−x̄)² ≤ this, (0, 1]
   std::size_t response_min_volumes = 8;  // volumes in the window to judge, [3, 10000]
   double response_min_gain = 0.3;        // image mm per catheter mm below this: fault, [0, 1)
+  // Servo tip samples kept for the tip at acquisition (the last 1 s at most): at least 1 s of
+  // servo cycles; 2048 covers 1 kHz with margin. [16, 1000000]; allocated once, at construction.
+  std::size_t history_capacity = 2048;
   // Throws std::invalid_argument naming the field.
   void Validate() const;
 };
@@ -77,6 +85,10 @@ inline constexpr std::uint32_t kStopRequested = 1u << 3;
 inline constexpr std::uint32_t kRetracted = 1u << 4;
 // The imaged tip does not follow the catheter's (response check): latched until Enable.
 inline constexpr std::uint32_t kImageNotResponding = 1u << 5;
+// The servo loop missed its deadlines (control/deadline_watchdog.h): holding until
+// DeadlineCleared; retracting, latched until Enable.
+inline constexpr std::uint32_t kDeadlineHold = 1u << 6;
+inline constexpr std::uint32_t kDeadlineRetract = 1u << 7;
 }  // namespace follower_fault
 
 struct FollowerCounters {
@@ -117,6 +129,18 @@ class TargetFollower final : public Trajectory {
   // Every servo cycle, before Evaluate: records the tip and runs the supervisor.
   void Update(double now_s, double tip_mm);
 
+  // The deadline watchdog's actions (control/deadline_watchdog.h); each may be called once
+  // at the transition or every cycle while the action is in force. DeadlineHold holds the
+  // tip where it is (as a stale estimate does, so a hold that lasts retract_after_s retracts);
+  // fresh estimates do not end it. DeadlineCleared ends it: back to following when no other
+  // hold reason is active and the estimate is fresh (else the hold goes on, as stale if the
+  // estimate is). DeadlineRetract starts the follower's retract motion at once, from the held
+  // tip (or the tip now), latched until Enable. A disabled or stopped follower only gets the
+  // fault bit: it moves on the operator's command only.
+  void DeadlineHold(double now_s);
+  void DeadlineCleared(double now_s);
+  void DeadlineRetract(double now_s);
+
   MotionSample Evaluate(double t_s) const override;
   std::string name() const override { return "target_follower"; }
 
@@ -133,7 +157,11 @@ class TargetFollower final : public Trajectory {
   const FollowerConfig& config() const { return config_; }
 
  private:
-  double TipAt(double t_s) const;      // the servo's tip history, interpolated
+  double TipAt(double t_s) const;  // the servo's tip history, interpolated
+  // The i-th oldest sample of the tip history (i < tip_count_).
+  const std::pair<double, double>& TipSample(std::size_t i) const {
+    return tip_ring_[(tip_head_ + i) % tip_ring_.size()];
+  }
   MotionSample Raw(double t_s) const;  // the reference before the travel clamp
   void CheckResponse(double acquired_s, double tip_axis_mm, double now_s);
   void Hold(double now_s, std::uint32_t fault);
@@ -153,7 +181,14 @@ class TargetFollower final : public Trajectory {
   struct ResponsePoint {
     double acquired_s, tip_x_mm, tip_s_mm;  // the servo's tip x and the imaged tip s
   };
-  std::deque<ResponsePoint> response_window_;
+  // The response check's window, oldest first: a ring that starts with room for 256 volumes
+  // (10 s at 25 vol/s) and doubles only when a window holds more than ever before.
+  std::vector<ResponsePoint> response_ring_;
+  std::size_t response_head_ = 0, response_count_ = 0;
+  const ResponsePoint& ResponseAt(std::size_t i) const {
+    return response_ring_[(response_head_ + i) % response_ring_.size()];
+  }
+  void PushResponse(const ResponsePoint& p);
   // The scale fit: weighted means of x_tip and s_tip, their (co)variance, and the slope.
   double scale_ = 1.0;
   double mean_x_ = 0.0, mean_s_ = 0.0, var_x_ = 0.0, cov_xs_ = 0.0;
@@ -161,7 +196,9 @@ class TargetFollower final : public Trajectory {
   double hold_mm_ = 0.0;
   double hold_since_s_ = 0.0;
   double tip_mm_ = 0.0;
-  std::deque<std::pair<double, double>> tip_history_;  // (t, tip), last ~0.5 s
+  // (t, tip) of the last 1 s of cycles, at most history_capacity: a ring, oldest at tip_head_.
+  std::vector<std::pair<double, double>> tip_ring_;
+  std::size_t tip_head_ = 0, tip_count_ = 0;
 };
 
 }  // namespace echoservo::control

@@ -1,5 +1,7 @@
 #include "hw/fault_injection.h"
 
+#include <chrono>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 
@@ -14,6 +16,11 @@ FaultInjectingHardware::FaultInjectingHardware(HardwareInterface& inner,
     if (!(f.end_s >= f.start_s))
       throw std::invalid_argument("FaultInjectingHardware: fault on '" + f.interface +
                                   "' ends before it starts");
+    if (f.kind == FaultKind::kSlowRead &&
+        !(std::isfinite(f.value) && f.value > 0.0 && f.value <= kMaxSlowReadMs))
+      throw std::invalid_argument("FaultInjectingHardware: a slow read must take (0, " +
+                                  std::to_string(kMaxSlowReadMs) + "] ms, not " +
+                                  std::to_string(f.value));
     index_.push_back(f.command ? inner_.CommandIndex(f.interface) : inner_.StateIndex(f.interface));
   }
   last_good_.assign(faults_.size(), 0.0);
@@ -48,6 +55,15 @@ double FaultInjectingHardware::Apply(const InjectedFault& f, double value, doubl
       return last_good;
     case FaultKind::kOffset:
       return value + f.value;
+    case FaultKind::kSlowRead: {
+      // Busy, as a driver waiting on its bus would be: a sleep would hand the CPU back.
+      const auto until = std::chrono::steady_clock::now() +
+                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                             std::chrono::duration<double, std::milli>(f.value));
+      while (std::chrono::steady_clock::now() < until) {
+      }
+      return value;
+    }
   }
   return value;
 }

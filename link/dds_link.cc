@@ -8,6 +8,7 @@
 #include <fastrtps/xmlparser/XMLProfileManager.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <fastdds/dds/domain/DomainParticipant.hpp>
@@ -439,6 +440,7 @@ struct Subscriber<Sample>::Impl final : public dds::DataReaderListener {
   SampleValidator validator;
   SubscriberStats stats;
   std::uint32_t alive_count = 0;  // liveliness
+  std::atomic<bool> gone{false};  // stats().publisher_gone(), kept current under mu
   Sample latest;
   double latest_received_s = 0.0;
   bool fresh = false;
@@ -498,6 +500,7 @@ struct Subscriber<Sample>::Impl final : public dds::DataReaderListener {
     std::lock_guard lock(mu);
     stats.matched_publishers = static_cast<std::uint32_t>(std::max(0, s.current_count));
     if (!Traits::kQos.liveliness && s.current_count > 0) stats.ever_alive = true;
+    UpdateGoneLocked();
   }
 
   void on_liveliness_changed(dds::DataReader*, const dds::LivelinessChangedStatus& s) override {
@@ -506,6 +509,16 @@ struct Subscriber<Sample>::Impl final : public dds::DataReaderListener {
     if (s.alive_count > 0) stats.ever_alive = true;
     if (s.not_alive_count_change > 0)
       stats.liveliness_lost += static_cast<std::uint64_t>(s.not_alive_count_change);
+    UpdateGoneLocked();
+  }
+
+  std::uint32_t AlivePublishersLocked() const {
+    return Traits::kQos.liveliness ? std::min(alive_count, stats.matched_publishers)
+                                   : stats.matched_publishers;
+  }
+  // After every change of alive_count, matched_publishers or ever_alive (under mu).
+  void UpdateGoneLocked() {
+    gone.store(stats.ever_alive && AlivePublishersLocked() == 0, std::memory_order_release);
   }
 
   bool TakeLocked(Sample& out, double* received_s) {
@@ -549,10 +562,13 @@ SubscriberStats Subscriber<Sample>::stats() const {
   std::lock_guard lock(impl_->mu);
   SubscriberStats s = impl_->stats;
   s.validation = impl_->validator.counters();
-  s.alive_publishers = Impl::Traits::kQos.liveliness
-                           ? std::min(impl_->alive_count, s.matched_publishers)
-                           : s.matched_publishers;
+  s.alive_publishers = impl_->AlivePublishersLocked();
   return s;
+}
+
+template <class Sample>
+bool Subscriber<Sample>::publisher_gone_now() const {
+  return impl_->gone.load(std::memory_order_acquire);
 }
 
 template <class Sample>

@@ -5,10 +5,10 @@
 // Subscribers validate every sample on the DDS receive thread (link/sample_validation.h),
 // count rejections by reason and keep the newest accepted sample; TryTakeLatest never blocks
 // and does not allocate once warm (the 1 kHz loop). A publisher that disappears shows as
-// stats().publisher_gone() (liveliness). Times in s on the shared clock (link/clock.h);
-// units and frames as in link/samples.h. Errors: options a user can get wrong throw
-// std::invalid_argument; a DDS entity that cannot be created throws std::runtime_error.
-// Details: docs/dds.md#using-it
+// stats().publisher_gone() (liveliness), and without a lock as publisher_gone_now(). Times in s on
+// the shared clock (link/clock.h); units and frames as in link/samples.h. Errors: options a user
+// can get wrong throw std::invalid_argument; a DDS entity that cannot be created throws
+// std::runtime_error. Details: docs/dds.md#using-it
 #pragma once
 
 #include <cstddef>
@@ -145,6 +145,9 @@ class Subscriber {
   bool WaitForPublishers(std::size_t n, double timeout_s) const;
 
   SubscriberStats stats() const;
+  // stats().publisher_gone() without the lock stats() takes: an atomic the receive thread
+  // updates with the match and liveliness counts (the 1 kHz loop).
+  bool publisher_gone_now() const;
   std::string topic_name() const;
   std::string type_name() const;
   EndpointQos qos() const;

@@ -34,6 +34,8 @@ static_assert(state_constants::FAULT_NON_FINITE == fault::kNonFinite);
 static_assert(state_constants::FAULT_HARDWARE == fault::kHardware);
 static_assert(state_constants::FAULT_TRACKER_LOST == fault::kTrackerLost);
 static_assert(state_constants::FAULT_IMAGE_NOT_RESPONDING == fault::kImageNotResponding);
+static_assert(state_constants::FAULT_DEADLINE_HOLD == fault::kDeadlineHold);
+static_assert(state_constants::FAULT_DEADLINE_RETRACT == fault::kDeadlineRetract);
 static_assert(command_constants::ACTION_ENABLE == static_cast<std::uint8_t>(ServoAction::kEnable));
 static_assert(command_constants::ACTION_DISABLE ==
               static_cast<std::uint8_t>(ServoAction::kDisable));

@@ -68,7 +68,11 @@ inline constexpr std::uint32_t kNonFinite = 1u << 5;
 inline constexpr std::uint32_t kHardware = 1u << 6;
 inline constexpr std::uint32_t kTrackerLost = 1u << 7;
 inline constexpr std::uint32_t kImageNotResponding = 1u << 8;  // imaged tip ignores the catheter
-inline constexpr std::uint32_t kAll = (1u << 9) - 1;
+// The servo loop missed its deadlines (control/deadline_watchdog.h): K overruns in a row,
+// holding; no cycle on time for the retraction time, retracting (latched until ENABLE).
+inline constexpr std::uint32_t kDeadlineHold = 1u << 9;
+inline constexpr std::uint32_t kDeadlineRetract = 1u << 10;
+inline constexpr std::uint32_t kAll = (1u << 11) - 1;
 }  // namespace fault
 
 struct CatheterStateSample {

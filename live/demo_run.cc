@@ -1,6 +1,7 @@
 #include "live/demo_run.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -15,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "hw/fault_injection.h"
 #include "hw/io/durable_file.h"
 #include "hw/io/run_dir_guard.h"
 #include "hw/io/run_record.h"
@@ -23,7 +25,10 @@
 #include "link/dds_link.h"
 #include "link/security.h"
 #include "live/delayed_scanner.h"
+#include "live/lock_free.h"
 #include "live/pipeline_clock.h"
+#include "live/run_row_queue.h"
+#include "live/servo_cycle_clock.h"
 #include "live/servo_node.h"
 #include "live/sim_catheter.h"
 #include "live/sim_scene.h"
@@ -34,21 +39,27 @@ namespace echoservo::live {
 namespace {
 
 // Arrival times of the published volumes by sequence number: the latency's start, which
-// the DDS sample does not carry (in-process bookkeeping of the demo only).
-struct Arrivals {
-  std::mutex m;
-  std::deque<std::pair<std::uint64_t, double>> seq_arrived;
-  void Add(std::uint64_t seq, double arrived_s) {
-    std::lock_guard lock(m);
-    seq_arrived.emplace_back(seq, arrived_s);
-    while (seq_arrived.size() > 256) seq_arrived.pop_front();
-  }
-  std::optional<double> Find(std::uint64_t seq) {
-    std::lock_guard lock(m);
-    for (const auto& [s, a] : seq_arrived)
-      if (s == seq) return a;
+// the DDS sample does not carry (in-process bookkeeping of the demo only). The tracker
+// thread adds through a lock-free ring; the servo thread keeps the newest 256 in its own
+// array, so neither ever waits for the other.
+class Arrivals {
+ public:
+  void Add(std::uint64_t seq, double arrived_s) { ring_.Push({seq, arrived_s}); }  // tracker
+  std::optional<double> Find(std::uint64_t seq) {                                  // servo
+    ring_.Drain([this](const Arrival& a) { seen_[next_++ % seen_.size()] = a; });
+    for (const Arrival& a : seen_)
+      if (a.seq == seq && a.seq != 0) return a.arrived_s;
     return std::nullopt;
   }
+
+ private:
+  struct Arrival {
+    std::uint64_t seq = 0;  // sequence numbers start at 1
+    double arrived_s = 0.0;
+  };
+  LossyRing<Arrival, 256> ring_;
+  std::array<Arrival, 256> seen_{};
+  std::size_t next_ = 0;
 };
 
 std::string Fmt(const char* f, auto... args) {
@@ -101,6 +112,8 @@ void DemoOptions::Validate() const {
   if (!(dds_domain >= 0 && dds_domain <= 232)) bad("--dds-domain", "must be in [0, 232]");
   if (!(guidewire_od_mm > 0 && sheath_id_mm > guidewire_od_mm && sheath_id_mm <= 5))
     bad("--sheath-id/--guidewire-od", "must satisfy 0 < guidewire < sheath ≤ 5 mm");
+  realtime.Validate();
+  watchdog.Validate(1e-3);    // the simulated catheter's servo period (live/sim_catheter.h)
   if (!secure_dir.empty()) {  // before the scene is built: a bad directory fails at once
     SecureProperties(secure_dir, "tracker");
     SecureProperties(secure_dir, "servo");
@@ -168,7 +181,13 @@ DemoResult RunDemo(const DemoOptions& o) {
   // resumes by itself; a clinical system waits for the operator's ENABLE command).
   so.auto_enable = true;
   so.link_offset_s = clock.link_offset_s();
-  ServoNode servo(plant, catheter.servo, std::move(catheter.compensator), so, &servo_participant);
+  so.watchdog = o.watchdog;
+  // A slow driver on purpose (slow_reads): the servo reads the plant through it.
+  std::optional<hw::FaultInjectingHardware> slow_hw;
+  if (!o.slow_reads.empty()) slow_hw.emplace(plant, o.slow_reads);
+  hw::HardwareInterface& servo_hw = slow_hw ? static_cast<hw::HardwareInterface&>(*slow_hw) : plant;
+  ServoNode servo(servo_hw, catheter.servo, std::move(catheter.compensator), so,
+                  &servo_participant);
   target_pub.WaitForSubscribers(1, 5.0);
 
   DemoResult result;
@@ -208,6 +227,10 @@ DemoResult RunDemo(const DemoOptions& o) {
     }
   });
 
+  // The servo thread's RUN rows go to the disk from a thread of their own (created here,
+  // before the servo thread is raised to real time).
+  RunRowQueue rows(writer.get());
+
   // However this function is left (an exception in the servo loop included), the tracker
   // thread is stopped and joined first: a joinable std::thread must not be destroyed.
   struct TrackerJoin {
@@ -233,12 +256,16 @@ DemoResult RunDemo(const DemoOptions& o) {
   std::optional<std::pair<std::uint64_t, double>> pending;  // sequence, applied_s
   double last_latency_arrived_s = -std::numeric_limits<double>::infinity();
   std::uint64_t latency_out_of_order = 0;
+  // This thread becomes the servo thread; the scanner, tracker, recorder and DDS threads
+  // exist already and keep their normal priority.
+  ServoCycleClock cycle_clock(clock, period, &servo, o.realtime);
+  for (const std::string& r : cycle_clock.realtime().refusals) log("real time: " + r);
+  log("real time: " + cycle_clock.realtime().Summary());
   servo.Start(0.0);
   for (std::uint64_t k = 0;; ++k) {
     const double t = static_cast<double>(k) * period;
     if (t > o.duration_s) break;
-    std::this_thread::sleep_until(clock.At(t));
-    if (clock.Now() > t + period) ++result.servo_overruns;
+    cycle_clock.Wait(k);
     const ServoCycle c = servo.Cycle(t, k);
     if (c.applied_sequence) pending = std::make_pair(*c.applied_sequence, clock.Now());
     if (pending) {
@@ -248,7 +275,7 @@ DemoResult RunDemo(const DemoOptions& o) {
         // (seen once under the sanitizers' load) is counted, not written out of order.
         if (*arrived > last_latency_arrived_s) {
           latency_ms.push_back(1e3 * (applied - *arrived));
-          if (writer) writer->AddLatency({*arrived, applied});
+          rows.AddLatency({*arrived, applied});
           last_latency_arrived_s = *arrived;
         } else {
           ++latency_out_of_order;
@@ -266,31 +293,47 @@ DemoResult RunDemo(const DemoOptions& o) {
     while (em.next_sample_s() <= t) {
       const double t_sample = em.next_sample_s();
       const hw::EmSample r = em.Sample(tip_img);
-      if (writer) writer->AddEm(r);
+      rows.AddEm(r);
       if (r.valid && t_sample >= o.metrics_start_s) {
         const double t_pipeline = r.t_s - scene.em_options().clock_offset_s;
         em_sq += (em_to_image * r.position_mm - scene.DesiredTip(t_pipeline)).squaredNorm();
         ++em_n;
       }
     }
-    const std::string mode = control::ToString(servo.follower().mode());
-    if (k % 10 == 0 && writer) {
-      writer->AddServo({t, mode, c.record.reference_mm, c.record.base_mm, c.record.tip_mm,
-                        static_cast<double>(servo.stats().fault_events)});
-      writer->AddTruth({t, scene.TargetImage(t), tip_img});
-    }
-    if (k % 1000 == 0 && k > 0)
-      log(Fmt("t %.0f s: mode %s, volumes %llu, detected %llu", t, mode.c_str(),
+    if (k % 10 == 0)
+      rows.AddServo(t, servo.follower().mode(), c.record.reference_mm, c.record.base_mm,
+                    c.record.tip_mm, static_cast<double>(servo.stats().fault_events),
+                    scene.TargetImage(t), tip_img);
+    if (k % 1000 == 0 && k > 0)  // once a second: a line of progress (the one allocation)
+      log(Fmt("t %.0f s: mode %s, volumes %llu, detected %llu", t,
+              control::ToString(servo.follower().mode()).c_str(),
               static_cast<unsigned long long>(scanner.acquired()),
               static_cast<unsigned long long>(tracker.stats().measured)));
+    cycle_clock.Done();
   }
   stop = true;
   scanner.Stop();
   tracker_thread.join();
+  servo.WaitStatesPublished(1.0);  // the publisher thread's last state, counted
+  rows.Stop();                     // the servo's rows on disk (and flushed)
+  if (!rows.error().empty())
+    throw std::runtime_error("demo: writing the RUN rows: " + rows.error());
+  if (rows.lost() > 0)
+    log(Fmt("RUN rows: %llu row(s) lost (the row writer fell behind the servo)",
+            static_cast<unsigned long long>(rows.lost())));
 
   const ServoNodeStats& ss = servo.stats();
   const TrackerStats& ts = tracker.stats();
   result.servo_cycles = ss.cycles;
+  result.realtime = cycle_clock.realtime();
+  result.timing = cycle_clock.Report();
+  result.servo_overruns = result.timing.overruns;
+  result.deadline_holds = ss.deadline_holds;
+  result.deadline_retracts = ss.deadline_retracts;
+  result.timing_json = ServoTimingJson(result.realtime, result.timing, so.watchdog,
+                                       ss.deadline_holds, ss.deadline_retracts);
+  if (!o.out_dir.empty())
+    hw::ReplaceFileContents(o.out_dir / "timing.json", result.timing_json + "\n");
   result.limit_faults = ss.limit_interventions;
   result.limit_violations = ss.limit_violations;
   result.resumes = ss.resumes;

@@ -16,6 +16,12 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <vector>
+
+#include "control/cycle_timing.h"
+#include "control/deadline_watchdog.h"
+#include "control/realtime.h"
+#include "hw/fault_injection.h"
 
 namespace echoservo::live {
 
@@ -51,6 +57,14 @@ struct DemoOptions {
   // DDS-Security: a credential directory of `echoservo security init` (link/security.h);
   // the tracker's participant uses its "tracker" identity, the servo's its "servo".
   std::string secure_dir;
+  // The servo thread's real-time settings (SCHED_FIFO, CPU, locked memory: control/realtime.h)
+  // and its deadline watchdog's limits; refusals by the system are logged once and the
+  // servo runs as an ordinary thread.
+  control::RealtimeOptions realtime;
+  control::DeadlineWatchdogConfig watchdog;
+  // Slow hardware reads on purpose (hw::FaultKind::kSlowRead on the servo's hardware), to
+  // provoke the deadline watchdog.
+  std::vector<hw::InjectedFault> slow_reads;
   std::function<void(const std::string&)> log;  // progress lines; may be null
   // Throws std::invalid_argument naming the option.
   void Validate() const;
@@ -76,7 +90,11 @@ struct DemoResult {
   std::uint64_t estimates_accepted = 0;      // by the servo
   std::uint64_t estimates_rejected = 0;
   std::uint64_t em_samples = 0, em_dropouts = 0;
-  std::uint64_t servo_cycles = 0, servo_overruns = 0;
+  std::uint64_t servo_cycles = 0, servo_overruns = 0;  // overrun: ended after the next deadline
+  control::RealtimeStatus realtime;                    // what the system granted the servo thread
+  control::CycleTimingReport timing;                   // wake-up latency, cycle duration, overruns
+  std::uint64_t deadline_holds = 0, deadline_retracts = 0;  // the deadline watchdog's
+  std::string timing_json;             // live::ServoTimingJson (also RUN/timing.json)
   std::uint64_t limit_faults = 0;      // limiter interventions counted as faults (clamps)
   std::uint64_t limit_violations = 0;  // cycles commanding outside a limit: must be 0
   std::uint64_t resumes = 0;           // following resumed after a watchdog retraction

@@ -1,6 +1,7 @@
 #include "live/servo_node.h"
 
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -10,7 +11,6 @@
 namespace echoservo::live {
 namespace {
 
-constexpr std::size_t kMaxQueuedCommands = 64;
 // The measured base may pass the limiter's travel window by at most the margin it keeps
 // inside the slide's end stops (control/command_limiter.h: 1 mm).
 constexpr double kEndStopMarginMm = 1.0;
@@ -48,6 +48,8 @@ std::uint32_t ToLinkFaults(std::uint32_t f) {
   if (f & control::follower_fault::kRejectedEstimate) out |= link::fault::kInvalidEstimate;
   if (f & control::follower_fault::kTravelLimit) out |= link::fault::kTravelLimit;
   if (f & control::follower_fault::kImageNotResponding) out |= link::fault::kImageNotResponding;
+  if (f & control::follower_fault::kDeadlineHold) out |= link::fault::kDeadlineHold;
+  if (f & control::follower_fault::kDeadlineRetract) out |= link::fault::kDeadlineRetract;
   return out;  // kStopRequested and kRetracted are modes, not faults
 }
 
@@ -62,22 +64,135 @@ ServoNode::ServoNode(hw::HardwareInterface& hardware, control::ServoConfig servo
       tip_index_(hardware.StateIndex(hw::iface::kTipPosition)),
       base_velocity_index_(hardware.StateIndex(hw::iface::kBaseVelocity)),
       fault_count_index_(hardware.StateIndex(hw::iface::kFaultCount)),
+      watchdog_((o_.watchdog.Validate(loop_.config().period_s), o_.watchdog),
+                loop_.config().period_s),
       direct_validator_(o_.limits) {
   if (!compensator_) throw std::invalid_argument("ServoNode: a backlash compensator is required");
   if (participant) {
     target_sub_ = std::make_unique<link::TargetSubscriber>(*participant, o_.limits);
     command_sub_ = std::make_unique<link::CommandSubscriber>(
-        *participant, o_.limits, [this](const link::ServoCommandSample& s, double) {
-          std::lock_guard lock(commands_m_);
-          if (s.action == link::ServoAction::kStop) commands_.clear();  // nothing may delay a stop
-          if (commands_.size() >= kMaxQueuedCommands) commands_.pop_front();
-          commands_.push_back(s);
-        });
+        *participant, o_.limits,
+        [this](const link::ServoCommandSample& s, double) { EnqueueCommand(s); });
     state_pub_ = std::make_unique<link::StatePublisher>(*participant);
+    // Created here, before the caller raises its thread to SCHED_FIFO: this one stays at
+    // normal priority (a DDS write may block and allocate).
+    publisher_ = std::thread([this] { PublishStates(); });
   }
 }
 
-ServoNode::~ServoNode() = default;
+ServoNode::~ServoNode() {
+  command_sub_.reset();  // no receive thread enqueues any more
+  target_sub_.reset();
+  if (publisher_.joinable()) {
+    stop_publisher_.store(true, std::memory_order_release);
+    state_signal_.fetch_add(1, std::memory_order_release);
+    state_signal_.notify_one();
+    publisher_.join();
+  }
+}
+
+void ServoNode::EnqueueCommand(const link::ServoCommandSample& s) {
+  std::lock_guard lock(commands_producer_m_);  // producers only: the cycle never takes it
+  const bool stop = s.action == link::ServoAction::kStop;
+  if (stop) commands_.Clear();  // nothing may delay a stop
+  commands_.Push(s);
+  if (stop) stop_requests_.fetch_add(1, std::memory_order_release);
+}
+
+void ServoNode::TakeCommands(double t_s) {
+  // Before the ring: every STOP counted here is in the ring or was overwritten in it.
+  const std::uint64_t stops = stop_requests_.load(std::memory_order_acquire);
+  bool stopped = false;
+  // Validated at reception: applied in the order they came.
+  commands_.Drain([&](const link::ServoCommandSample& c) {
+    stopped |= c.action == link::ServoAction::kStop;
+    ApplyCommand(c, t_s);
+  });
+  if (stops != stops_handled_ && !stopped) {
+    // A STOP followed by more than kMaxQueuedCommands commands within one cycle was
+    // overwritten in the ring: it still stops.
+    follower_.Stop(t_s);
+    ++stats_.commands_applied;
+  }
+  stops_handled_ = stops;
+  stats_.commands_dropped = commands_.lost();
+}
+
+void ServoNode::PublishStates() {
+  std::uint32_t seen = 0;
+  std::uint64_t published_version = 0;
+  link::CatheterStateSample s;
+  while (true) {
+    const std::uint32_t signal = state_signal_.load(std::memory_order_acquire);
+    if (signal == seen) {
+      if (stop_publisher_.load(std::memory_order_acquire)) return;
+      state_signal_.wait(seen, std::memory_order_acquire);
+      continue;
+    }
+    seen = signal;
+    const std::uint64_t version = state_slot_.Read(s);
+    if (version != 0 && version != published_version) {
+      published_version = version;
+      bool ok = false;
+      try {
+        ok = state_pub_->Publish(s);
+      } catch (const std::exception&) {  // state samples always fit the IDL: not expected
+        ok = false;
+      }
+      if (ok) states_published_.fetch_add(1, std::memory_order_relaxed);
+    }
+    states_handled_.store(version, std::memory_order_release);
+  }
+}
+
+bool ServoNode::WaitStatesPublished(double timeout_s) const {
+  if (!publisher_.joinable()) return true;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (states_handled_.load(std::memory_order_acquire) < state_slot_.version()) {
+    if (std::chrono::steady_clock::now() >= until) return false;
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  return true;
+}
+
+ServoNodeStats ServoNode::stats() const {
+  ServoNodeStats s = stats_;
+  s.states_published = states_published_.load(std::memory_order_relaxed);
+  return s;
+}
+
+void ServoNode::NoteWake(double t_s, double lateness_s) {
+  ApplyDeadlineAction(watchdog_.Woke(t_s, lateness_s), t_s);
+}
+
+void ServoNode::NoteCycleEnd(double t_s, bool overran) {
+  ApplyDeadlineAction(watchdog_.CycleEnded(t_s, overran), t_s);
+}
+
+void ServoNode::ApplyDeadlineAction(control::DeadlineAction action, double t_s) {
+  using control::DeadlineAction;
+  if (action != deadline_action_) {
+    switch (action) {
+      case DeadlineAction::kHold:
+        follower_.DeadlineHold(t_s);
+        break;
+      case DeadlineAction::kRetract:
+        follower_.DeadlineRetract(t_s);
+        break;
+      case DeadlineAction::kNone:  // a hold ended (a retraction ends only by Reset)
+        follower_.DeadlineCleared(t_s);
+        break;
+    }
+    deadline_action_ = action;
+  }
+  stats_.deadline_holds = watchdog_.holds();
+  stats_.deadline_retracts = watchdog_.retracts();
+}
+
+void ServoNode::ResetWatchdog(double t_s) {
+  watchdog_.Reset(t_s);
+  deadline_action_ = control::DeadlineAction::kNone;
+}
 
 void ServoNode::Start(double t_s) {
   loop_.Start(t_s);
@@ -112,6 +227,7 @@ bool ServoNode::ApplyCommand(const link::ServoCommandSample& c, double t_s) {
       case link::ServoAction::kEnable:
         follower_.SetStandoff(c.standoff_mm);
         follower_.Enable(t_s);
+        ResetWatchdog(t_s);
         enabled_once_ = true;
         break;
       case link::ServoAction::kDisable:
@@ -132,7 +248,7 @@ bool ServoNode::ApplyCommand(const link::ServoCommandSample& c, double t_s) {
 
 bool ServoNode::ApplyTarget(const link::TargetEstimateSample& s, double t_s) {
   const double off = o_.link_offset_s;
-  control::TargetEstimateInput in;
+  control::TargetEstimateInput& in = target_input_;  // copy-assignments reuse its storage
   in.acquired_s = s.acquisition_time_s - off;
   in.published_s = s.publication_time_s - off;
   in.target_motion = s.motion;
@@ -145,13 +261,15 @@ bool ServoNode::ApplyTarget(const link::TargetEstimateSample& s, double t_s) {
     return false;
   }
   ++stats_.estimates_accepted;
-  // Auto-enable resumes after a lost tracker, never after the image stopped answering (that
-  // fault latches until an operator's ENABLE).
+  // Auto-enable resumes after a lost tracker, never after the image stopped answering or
+  // the loop missed its deadlines for too long (those latch until an operator's ENABLE).
   if (o_.auto_enable &&
       (!enabled_once_ || (follower_.mode() == control::FollowerMode::kRetracting &&
-                          !(follower_.faults() & control::follower_fault::kImageNotResponding)))) {
+                          !(follower_.faults() & control::follower_fault::kImageNotResponding) &&
+                          deadline_action_ != control::DeadlineAction::kRetract))) {
     if (enabled_once_) ++stats_.resumes;
     follower_.Enable(t_s);
+    ResetWatchdog(t_s);
     enabled_once_ = true;
   }
   return true;
@@ -179,15 +297,7 @@ std::uint32_t ServoNode::ActiveFaults() {
 
 ServoCycle ServoNode::Cycle(double t_s, std::uint64_t k) {
   ServoCycle out;
-  if (command_sub_) {
-    std::deque<link::ServoCommandSample> commands;
-    {
-      std::lock_guard lock(commands_m_);
-      commands.swap(commands_);
-    }
-    // Validated by the subscriber at reception: applied in the order they came.
-    for (const link::ServoCommandSample& c : commands) ApplyCommand(c, t_s);
-  }
+  TakeCommands(t_s);
   if (target_sub_ && target_sub_->TryTakeLatest(sample_) && ApplyTarget(sample_, t_s))
     out.applied_sequence = sample_.sequence_number;
   const double tip_reading = hw_.state(tip_index_);
@@ -233,9 +343,12 @@ ServoCycle ServoNode::Cycle(double t_s, std::uint64_t k) {
 
   if (t_s >= next_state_s_) {
     next_state_s_ = t_s + 1.0 / o_.state_rate_hz;
-    if (target_sub_) tracker_gone_ = target_sub_->stats().publisher_gone();
-    const link::CatheterStateSample s = State(t_s);
-    if (state_pub_ && state_pub_->Publish(s)) ++stats_.states_published;
+    if (target_sub_) tracker_gone_ = target_sub_->publisher_gone_now();
+    if (publisher_.joinable()) {  // the publisher thread writes it to DDS
+      state_slot_.Write(State(t_s));
+      state_signal_.fetch_add(1, std::memory_order_release);
+      state_signal_.notify_one();  // a futex wake when it waits; nothing when it does not
+    }
     ++state_sequence_;
     pending_faults_ = 0;
   }

@@ -18,7 +18,7 @@ constexpr double kAdvanceAtZeroMm = 4.5;
 
 }  // namespace
 
-SimScene::SimScene(const SimSceneOptions& o) : o_(o) {
+SimScene::SimScene(const SimSceneOptions& o) : o_(o), tip_history_(kTipHistory) {
   imaging::sim::SimulatedScannerOptions so;
   imaging::sim::PlaceCatheterScene({0.0, 10.0, 60.0, 0.0, kAdvanceAtZeroMm}, so);
   so.rate_hz = o.rate_hz;
@@ -63,24 +63,54 @@ SimScene::SimScene(const SimSceneOptions& o) : o_(o) {
 SimScene::~SimScene() = default;
 
 void SimScene::SetPlantTip(double t_s, double tip_mm) {
-  std::lock_guard lock(tip_m_);
-  if (!tip_history_.empty() && t_s <= tip_history_.back().first) return;  // out of order: ignored
-  tip_history_.emplace_back(t_s, tip_mm);
-  while (tip_history_.size() > 2 && tip_history_.front().first < t_s - 1.0)
-    tip_history_.pop_front();
+  std::unique_lock lock(tip_m_, std::try_to_lock);
+  if (!lock.owns_lock()) {                    // a reader has it: keep the sample for the next call
+    if (tip_pending_count_ == kTipPending) {  // drop the oldest kept sample
+      std::move(tip_pending_.begin() + 1, tip_pending_.end(), tip_pending_.begin());
+      --tip_pending_count_;
+    }
+    tip_pending_[tip_pending_count_++] = {t_s, tip_mm};
+    return;
+  }
+  for (std::size_t i = 0; i < tip_pending_count_; ++i)
+    AddTipLocked(tip_pending_[i].first, tip_pending_[i].second);
+  tip_pending_count_ = 0;
+  AddTipLocked(t_s, tip_mm);
+}
+
+void SimScene::AddTipLocked(double t_s, double tip_mm) {
+  const std::size_t n = tip_history_.size();
+  auto at = [&](std::size_t i) -> std::pair<double, double>& {
+    return tip_history_[(tip_first_ + i) % n];
+  };
+  if (tip_count_ > 0 && t_s <= at(tip_count_ - 1).first) return;  // out of order: ignored
+  if (tip_count_ == n) {                                          // full: the oldest goes
+    tip_first_ = (tip_first_ + 1) % n;
+    --tip_count_;
+  }
+  at(tip_count_++) = {t_s, tip_mm};
+  while (tip_count_ > 2 && at(0).first < t_s - 1.0) {
+    tip_first_ = (tip_first_ + 1) % n;
+    --tip_count_;
+  }
 }
 
 double SimScene::PlantTipAt(double t_s) const {
   std::lock_guard lock(tip_m_);
-  if (tip_history_.empty()) return 0.0;
-  if (t_s <= tip_history_.front().first) return tip_history_.front().second;
-  if (t_s >= tip_history_.back().first) return tip_history_.back().second;
-  const auto hi =
-      std::lower_bound(tip_history_.begin(), tip_history_.end(), t_s,
-                       [](const std::pair<double, double>& p, double t) { return p.first < t; });
-  const auto lo = hi - 1;
-  const double f = (t_s - lo->first) / (hi->first - lo->first);
-  return lo->second + f * (hi->second - lo->second);
+  if (tip_count_ == 0) return 0.0;
+  const std::size_t n = tip_history_.size();
+  auto at = [&](std::size_t i) -> const std::pair<double, double>& {
+    return tip_history_[(tip_first_ + i) % n];
+  };
+  if (t_s <= at(0).first) return at(0).second;
+  if (t_s >= at(tip_count_ - 1).first) return at(tip_count_ - 1).second;
+  std::size_t lo = 0, hi = tip_count_ - 1;  // at(lo).t < t_s ≤ at(hi).t
+  while (hi - lo > 1) {
+    const std::size_t mid = lo + (hi - lo) / 2;
+    (at(mid).first < t_s ? lo : hi) = mid;
+  }
+  const double f = (t_s - at(lo).first) / (at(hi).first - at(lo).first);
+  return at(lo).second + f * (at(hi).second - at(lo).second);
 }
 
 imaging::SourceFrame SimScene::Render(double t_s) { return scanner_->Render(t_s); }

@@ -14,11 +14,12 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
-#include <deque>
 #include <memory>
 #include <mutex>
 #include <utility>
+#include <vector>
 
 #include "hw/sim_em_tracker.h"
 #include "imaging/volume_source.h"
@@ -50,8 +51,12 @@ class SimScene {
 
   // The plant's tip position (catheter coordinates, mm) at t_s (pipeline clock), in time
   // order; the scene shows the tip at each volume's acquisition time, interpolated in
-  // this history (the last second is kept), not where it is when rendering starts.
+  // this history (the last second is kept, up to kTipHistory samples), not where it is
+  // when rendering starts. One writer thread at a time (the demo's servo thread): it never
+  // waits for the readers (the renderer, the tracker) and never allocates — a sample that
+  // finds the history in use is kept aside (up to kTipPending) and added by the next call.
   void SetPlantTip(double t_s, double tip_mm);
+  static constexpr std::size_t kTipHistory = 4096, kTipPending = 64;
   double PlantTipAt(double t_s) const;
   // The volume acquired at t_s (one rendering thread).
   imaging::SourceFrame Render(double t_s);
@@ -70,8 +75,13 @@ class SimScene {
 
  private:
   SimSceneOptions o_;
+  void AddTipLocked(double t_s, double tip_mm);
   mutable std::mutex tip_m_;
-  std::deque<std::pair<double, double>> tip_history_;  // (t_s, tip_mm)
+  // (t_s, tip_mm), a ring of kTipHistory: entry i (0 oldest) at (tip_first_ + i) % size.
+  std::vector<std::pair<double, double>> tip_history_;
+  std::size_t tip_first_ = 0, tip_count_ = 0;
+  std::array<std::pair<double, double>, kTipPending> tip_pending_{};  // writer thread only
+  std::size_t tip_pending_count_ = 0;
   std::unique_ptr<control::Trajectory> target_motion_;
   std::unique_ptr<imaging::sim::SimulatedScanner> scanner_;
   Eigen::Isometry3d base_to_world_ = Eigen::Isometry3d::Identity();

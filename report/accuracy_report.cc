@@ -404,6 +404,54 @@ std::string FramesHtml(const AccuracyMetrics& m) {
   return s + "</section>";
 }
 
+// The servo thread's timing from timing.json (null without one).
+Json ServoTimingJson(const AccuracyMetrics& m) {
+  if (!m.servo_timing) return Json(nullptr);
+  const hw::ServoTimingRecord& t = *m.servo_timing;
+  return {{"realtime", t.realtime_summary},
+          {"fifo", t.fifo},
+          {"refusals", t.refusals},
+          {"period_s", t.period_s},
+          {"cycles", t.cycles},
+          {"overruns", t.overruns},
+          {"overrun_fraction", t.overrun_fraction},
+          {"max_consecutive_overruns", t.max_consecutive_overruns},
+          {"wakeup_latency_us",
+           {{"p50", t.wakeup_p50_us},
+            {"p99", t.wakeup_p99_us},
+            {"p999", t.wakeup_p999_us},
+            {"max", t.wakeup_max_us}}},
+          {"cycle_duration_us",
+           {{"p50", t.cycle_p50_us},
+            {"p99", t.cycle_p99_us},
+            {"p999", t.cycle_p999_us},
+            {"max", t.cycle_max_us}}},
+          {"deadline_holds", t.deadline_holds},
+          {"deadline_retracts", t.deadline_retracts}};
+}
+
+std::string ServoTimingHtml(const AccuracyMetrics& m) {
+  if (!m.servo_timing) return "";
+  const hw::ServoTimingRecord& t = *m.servo_timing;
+  std::string s = "<section id=\"servo-timing\"><h2>Servo timing</h2><p class=\"note\">" +
+                  Esc(t.realtime_summary) + "; " + std::to_string(t.cycles) + " cycles of " +
+                  Fix(1e3 * t.period_s, 2) + " ms, " + std::to_string(t.overruns) +
+                  " overrun(s) (" + Fix(100.0 * t.overrun_fraction, 3) + " %), at most " +
+                  std::to_string(t.max_consecutive_overruns) + " in a row; deadline holds " +
+                  std::to_string(t.deadline_holds) + ", retractions " +
+                  std::to_string(t.deadline_retracts) + ".</p><table>" +
+                  Row({"µs", "p50", "p99", "p99.9", "max"}, "", true, 0) +
+                  Row({"wake-up latency", Fix(t.wakeup_p50_us, 0), Fix(t.wakeup_p99_us, 0),
+                       Fix(t.wakeup_p999_us, 0), Fix(t.wakeup_max_us, 0)},
+                      "", false, 0) +
+                  Row({"cycle duration", Fix(t.cycle_p50_us, 0), Fix(t.cycle_p99_us, 0),
+                       Fix(t.cycle_p999_us, 0), Fix(t.cycle_max_us, 0)},
+                      "", false, 0) +
+                  "</table>";
+  for (const std::string& r : t.refusals) s += "<p class=\"note\">" + Esc(r) + "</p>";
+  return s + "</section>";
+}
+
 std::string ServoHtml(const hw::RunRecord& run, const AccuracyMetrics& m) {
   if (!run.has_servo) return "";
   std::vector<double> t, setpoint, base, tip;
@@ -497,8 +545,8 @@ AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
              "–" + Fix(em_points.t_s.back() + m.alignment.em_time_offset_s, 2) + " s";
     }
     throw std::invalid_argument(
-        "accuracy: no valid EM sample falls within the target series (" + m.target_source +
-        ", " + Fix(target.t_s.empty() ? kNaN : target.t_s.front(), 2) + "–" +
+        "accuracy: no valid EM sample falls within the target series (" + m.target_source + ", " +
+        Fix(target.t_s.empty() ? kNaN : target.t_s.front(), 2) + "–" +
         Fix(target.t_s.empty() ? kNaN : target.t_s.back(), 2) + " s) after the clock offset of " +
         Fix(m.alignment.em_time_offset_s, 3) + " s in the window " + WindowText(m) + "; " + span +
         " (--from moves the window's start)");
@@ -521,6 +569,7 @@ AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
     pipeline.push_back(1000.0 * (r.published_s - r.acquired_s));
   m.pipeline = SummarizeMs(pipeline);
   m.dropped = CountDropped(run);
+  if (run.has_timing) m.servo_timing = run.timing;
   if (!run.servo.empty()) {
     m.servo_faults = run.servo.back().faults - run.servo.front().faults;
     for (std::size_t i = 0; i + 1 < run.servo.size(); ++i) {
@@ -600,6 +649,7 @@ std::string AccuracyJson(const AccuracyMetrics& m, const AccuracyReportOptions& 
       {"em_dropouts_by_reason", dropouts},
       {"servo_faults", m.servo_faults},
       {"servo_mode_s", modes},
+      {"servo_timing", ServoTimingJson(m)},
       {"notes", m.notes}};
   return j.dump(2);
 }
@@ -649,6 +699,7 @@ std::string RenderAccuracyReport(const hw::RunRecord& run, const AccuracyMetrics
   page += EmHtml(m, o) + "\n";
   page += FramesHtml(m) + "\n";
   page += ServoHtml(run, m) + "\n";
+  page += ServoTimingHtml(m) + "\n";
   if (!m.notes.empty()) {
     page += "<section id=\"notes\"><h2>Notes</h2><ul>";
     for (const std::string& n : m.notes) page += "<li>" + Esc(n) + "</li>";

@@ -17,6 +17,7 @@
 #include <cstddef>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -84,7 +85,8 @@ struct AccuracyMetrics {
   TimingStats latency, pipeline;   // latency.csv; published − acquired
   DroppedFrames dropped;
   double servo_faults = 0.0;
-  std::map<std::string, double> servo_mode_s;  // time in each servo mode
+  std::map<std::string, double> servo_mode_s;         // time in each servo mode
+  std::optional<hw::ServoTimingRecord> servo_timing;  // the RUN's timing.json, when present
   std::vector<std::string> notes;
   // The scored window: from window_from_s (−inf: the whole run) on, and why.
   double window_from_s = -std::numeric_limits<double>::infinity();

@@ -21,6 +21,7 @@ packages=(
   xvfb
   xauth
   iproute2
+  rt-tests
 )
 
 missing=()

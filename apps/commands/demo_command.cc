@@ -3,7 +3,8 @@
 // "true_tip_to_target_rms_mm", "latency_ms": {"p50", "p99", "max", "count"},
 // "dropped_frames", "volumes", "detected", "estimates_accepted", "estimates_rejected",
 // "em_samples", "em_dropouts", "servo_cycles", "servo_overruns", "limit_faults",
-// "ekf_harmonics", "ekf_rate_hz", "run_dir"}.
+// "ekf_harmonics", "ekf_rate_hz", "run_dir", "realtime", "timing", "deadline"} (the last three
+// as in `servo --json` and RUN/timing.json: live/servo_cycle_clock.h ServoTimingJson).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
@@ -14,6 +15,7 @@
 #include <string>
 
 #include "apps/commands/live_commands.h"
+#include "apps/commands/realtime_flags.h"
 #include "apps/commands/report_command.h"
 #include "live/demo_run.h"
 
@@ -24,6 +26,7 @@ namespace fs = std::filesystem;
 
 struct DemoArgs {
   live::DemoOptions options;
+  RealtimeFlags rt;
   std::string out;
   bool json = false;
   bool baseline = false;
@@ -32,6 +35,9 @@ struct DemoArgs {
 void RunDemoCommand(const DemoArgs& a) {
   live::DemoOptions o = a.options;
   o.out_dir = a.out;
+  o.realtime = ToRealtimeOptions(a.rt);
+  o.watchdog = ToWatchdogConfig(a.rt, 1e-3);  // the simulated catheter's 1 kHz servo
+  o.slow_reads = ToSlowReads(a.rt);
   if (!a.json) o.log = [](const std::string& line) { std::cerr << "demo: " << line << "\n"; };
   const live::DemoResult r = live::RunDemo(o);
   // The baseline in the same process: the same run (seed, scene, catheter) with the tracker
@@ -98,6 +104,8 @@ void RunDemoCommand(const DemoArgs& a) {
         {"ekf_rate_hz", r.ekf_rate_hz},
         {"run_dir", a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}};
     nlohmann::json out = j;
+    const nlohmann::json timing = nlohmann::json::parse(r.timing_json);
+    for (const char* key : {"realtime", "timing", "deadline"}) out[key] = timing[key];
     if (!report_error.empty()) out["report_error"] = report_error;
     if (report_rms_mm) {
       out["report"] = (fs::path(a.out) / "report.html").string();
@@ -129,6 +137,14 @@ void RunDemoCommand(const DemoArgs& a) {
       static_cast<unsigned long long>(r.dropped_frames),
       static_cast<unsigned long long>(r.em_samples), static_cast<unsigned long long>(r.em_dropouts),
       static_cast<unsigned long long>(r.servo_overruns));
+  std::printf(
+      "servo timing: wake-up latency p50 %.0f / p99 %.0f / p99.9 %.0f / max %.0f us, cycle p99 "
+      "%.0f us, overruns %.3f %%; deadline holds %llu, retractions %llu; real time: %s\n",
+      r.timing.wakeup_latency.p50_us, r.timing.wakeup_latency.p99_us,
+      r.timing.wakeup_latency.p999_us, r.timing.wakeup_latency.max_us,
+      r.timing.cycle_duration.p99_us, 100.0 * r.timing.overrun_fraction,
+      static_cast<unsigned long long>(r.deadline_holds),
+      static_cast<unsigned long long>(r.deadline_retracts), r.realtime.Summary().c_str());
   if (a.options.save_volumes)
     std::printf("volumes recorded %llu, dropped by the recorder %llu%s%s\n",
                 static_cast<unsigned long long>(r.volumes_recorded),
@@ -193,6 +209,7 @@ void AddLiveCommands(CLI::App& app) {
   demo->add_flag("--baseline", args->baseline,
                  "then run the same demo with a zero-order hold instead of the EKF (same process) "
                  "and report the ratio");
+  AddRealtimeFlags(*demo, args->rt);
   demo->add_flag("--json", args->json, "print the figures as JSON");
   demo->callback([args] { RunDemoCommand(*args); });
   AddTrackCommand(app);

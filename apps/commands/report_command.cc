@@ -169,6 +169,14 @@ void RunReport(const ReportFlags& f) {
               << Fixed(m.latency.max_ms, 1) << " ms\n";
   }
   std::cout << "dropped frames " << m.dropped.total() << " of " << m.dropped.volumes << "\n";
+  if (m.servo_timing) {
+    const hw::ServoTimingRecord& t = *m.servo_timing;
+    std::cout << "servo timing (" << t.realtime_summary << "): wake-up latency p50/p99/p99.9/max "
+              << Fixed(t.wakeup_p50_us, 0) << "/" << Fixed(t.wakeup_p99_us, 0) << "/"
+              << Fixed(t.wakeup_p999_us, 0) << "/" << Fixed(t.wakeup_max_us, 0) << " us, overruns "
+              << t.overruns << " of " << t.cycles << " cycles, deadline holds " << t.deadline_holds
+              << ", retractions " << t.deadline_retracts << "\n";
+  }
   for (const std::string& n : m.notes) std::cout << "note: " << n << "\n";
 }
 

@@ -7,7 +7,10 @@
 // timeline, time to the safe state after the tracker went away, and the tip's RMS error
 // to its setpoint while following; limit_interventions (cycles a limit intervened), the time
 // at a travel clamp, and the image response check: when it faulted after following began,
-// how soon the servo held and retracted, and the time at a clamp after it.
+// how soon the servo held and retracted, and the time at a clamp after it; the real-time
+// settings granted, the cycle timing (wake-up latency and cycle duration percentiles,
+// overruns: cycles whose work ended after the next deadline) and the deadline watchdog's
+// holds and retractions (live/servo_cycle_clock.h ServoTimingJson; docs/control.md).
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
@@ -21,7 +24,10 @@
 
 #include "apps/commands/link_flags.h"
 #include "apps/commands/live_commands.h"
+#include "apps/commands/realtime_flags.h"
+#include "hw/fault_injection.h"
 #include "live/pipeline_clock.h"
+#include "live/servo_cycle_clock.h"
 #include "live/servo_node.h"
 #include "live/sim_catheter.h"
 
@@ -30,6 +36,7 @@ namespace {
 
 struct ServoArgs {
   LinkFlags link;
+  RealtimeFlags rt;
   double duration_s = 0.0;
   double standoff_mm = 8.0;
   bool auto_enable = false;
@@ -58,12 +65,19 @@ void RunServo(const ServoArgs& a) {
   so.auto_enable = a.auto_enable;
   so.state_rate_hz = a.state_rate_hz;
   so.Validate();
-  link::Participant participant(ToParticipantOptions(a.link, "echoservo_servo", "servo"));
   live::SimCatheter catheter = live::MakeSimCatheter(a.sheath_id_mm, a.guidewire_od_mm, a.seed);
+  const control::RealtimeOptions rt = ToRealtimeOptions(a.rt);
+  so.watchdog = ToWatchdogConfig(a.rt, catheter.servo.period_s);
+  const std::vector<hw::InjectedFault> slow_reads = ToSlowReads(a.rt);
+  link::Participant participant(ToParticipantOptions(a.link, "echoservo_servo", "servo"));
   const live::PipelineClock clock(0.05);
   so.link_offset_s = clock.link_offset_s();
-  live::ServoNode node(*catheter.plant, catheter.servo, std::move(catheter.compensator), so,
-                       &participant);
+  // A slow driver on purpose (--inject-slow-read): the servo reads through it.
+  std::optional<hw::FaultInjectingHardware> slow_hw;
+  if (!slow_reads.empty()) slow_hw.emplace(*catheter.plant, slow_reads);
+  hw::HardwareInterface& hardware =
+      slow_hw ? static_cast<hw::HardwareInterface&>(*slow_hw) : *catheter.plant;
+  live::ServoNode node(hardware, catheter.servo, std::move(catheter.compensator), so, &participant);
   InstallStopSignals();
   if (!a.json)
     std::fprintf(stderr, "servo: 1 kHz on the simulated catheter, DDS domain %d; %s\n",
@@ -71,7 +85,6 @@ void RunServo(const ServoArgs& a) {
                  a.auto_enable ? "following the first estimate" : "waiting for an ENABLE command");
 
   const double period = catheter.servo.period_s;
-  std::uint64_t overruns = 0;
   link::ServoMode mode = link::ServoMode::kIdle;
   nlohmann::json timeline = nlohmann::json::array();
   std::optional<double> tracker_lost_s, safe_s;
@@ -86,13 +99,19 @@ void RunServo(const ServoArgs& a) {
   constexpr double kNoPeerReportS = 5.0;
   double next_no_peer_report_s = 2.0;
   bool peer_reported_missing = false, peer_seen = false;
+  // This thread becomes the servo thread: the DDS threads and the node's state publisher
+  // exist already and keep their normal priority.
+  live::ServoCycleClock cycle_clock(clock, period, &node, rt);
+  for (const std::string& r : cycle_clock.realtime().refusals)
+    std::fprintf(stderr, "servo: %s\n", r.c_str());
+  if (!a.json)
+    std::fprintf(stderr, "servo: real time: %s\n", cycle_clock.realtime().Summary().c_str());
   node.Start(0.0);
   std::uint64_t k = 0;
   for (;; ++k) {
     const double t = static_cast<double>(k) * period;
     if ((a.duration_s > 0 && t > a.duration_s) || StopRequested()) break;
-    std::this_thread::sleep_until(clock.At(t));
-    if (clock.Now() > t + period) ++overruns;
+    cycle_clock.Wait(k);
     const live::ServoCycle c = node.Cycle(t, k);
     if (!peer_seen && k % 100 == 0) {  // 10 Hz: where the servo looks, while nothing is there
       if (node.target_link_stats().matched_publishers > 0) {
@@ -139,8 +158,14 @@ void RunServo(const ServoArgs& a) {
     } else {
       following_since = -1.0;
     }
+    cycle_clock.Done();
   }
+  node.WaitStatesPublished(1.0);  // the publisher thread's last state, counted
   const live::ServoNodeStats& s = node.stats();
+  const control::CycleTimingReport timing = cycle_clock.Report();
+  const std::uint64_t overruns = timing.overruns;
+  const nlohmann::json timing_json = nlohmann::json::parse(live::ServoTimingJson(
+      cycle_clock.realtime(), timing, so.watchdog, s.deadline_holds, s.deadline_retracts));
   const link::SubscriberStats ls = node.target_link_stats();
   const nlohmann::json j = {
       {"cycles", s.cycles},
@@ -176,7 +201,10 @@ void RunServo(const ServoArgs& a) {
                                                       : nlohmann::json(nullptr)},
       {"tip_to_setpoint_rms_mm",
        err_n ? nlohmann::json(std::sqrt(err_sq / static_cast<double>(err_n)))
-             : nlohmann::json(nullptr)}};
+             : nlohmann::json(nullptr)},
+      {"realtime", timing_json["realtime"]},
+      {"timing", timing_json["timing"]},
+      {"deadline", timing_json["deadline"]}};
   if (a.json) {
     std::cout << j.dump(2) << "\n";
   } else {
@@ -190,6 +218,14 @@ void RunServo(const ServoArgs& a) {
         static_cast<unsigned long long>(s.commands_applied),
         static_cast<unsigned long long>(s.limit_violations),
         std::string(link::ToString(mode)).c_str());
+    std::printf(
+        "servo timing: wake-up latency p50 %.0f / p99 %.0f / p99.9 %.0f / max %.0f us, cycle "
+        "p99 %.0f us, overruns %.3f %%; deadline holds %llu, retractions %llu; %s\n",
+        timing.wakeup_latency.p50_us, timing.wakeup_latency.p99_us, timing.wakeup_latency.p999_us,
+        timing.wakeup_latency.max_us, timing.cycle_duration.p99_us, 100.0 * timing.overrun_fraction,
+        static_cast<unsigned long long>(s.deadline_holds),
+        static_cast<unsigned long long>(s.deadline_retracts),
+        cycle_clock.realtime().Summary().c_str());
   }
 }
 
@@ -201,6 +237,7 @@ void AddServoCommand(CLI::App& app) {
                                      "servo process: target estimates and commands over DDS → 1 "
                                      "kHz control of the simulated catheter → state");
   AddLinkFlags(*cmd, a->link);
+  AddRealtimeFlags(*cmd, a->rt);
   cmd->add_option("--duration", a->duration_s, "run length, s (0: until SIGINT/SIGTERM)")
       ->check(CLI::Range(0.0, 86400.0));
   cmd->add_option("--standoff", a->standoff_mm,

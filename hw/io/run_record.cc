@@ -132,6 +132,73 @@ bool Exists(const fs::path& p) {
   return fs::is_regular_file(p, ec);
 }
 
+// timing.json (optional): the keys the report shows, each checked for its type and range.
+ServoTimingRecord ReadTimingJson(const fs::path& path) {
+  constexpr std::uintmax_t kMaxBytes = 1 << 20;
+  std::error_code ec;
+  if (fs::file_size(path, ec) > kMaxBytes) FailFile(path, "larger than 1 MiB: not a timing.json");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) FailFile(path, "cannot open file for reading");
+  Json j;
+  try {
+    j = Json::parse(in);
+  } catch (const Json::exception& e) {
+    FailFile(path, std::string("not valid JSON: ") + e.what());
+  }
+  auto object = [&](const Json& parent, const char* key) -> const Json& {
+    if (!parent.is_object() || !parent.contains(key) || !parent[key].is_object())
+      FailFile(path, std::string("key '") + key + "' must be an object");
+    return parent[key];
+  };
+  auto number = [&](const Json& o, const char* key, const char* where) {
+    if (!o.contains(key) || !o[key].is_number() || !std::isfinite(o[key].get<double>()) ||
+        o[key].get<double>() < 0.0)
+      FailFile(path, std::string("key '") + where + "." + key + "' must be a number ≥ 0");
+    return o[key].get<double>();
+  };
+  auto count = [&](const Json& o, const char* key, const char* where) {
+    if (!o.contains(key) || !o[key].is_number_unsigned())
+      FailFile(path, std::string("key '") + where + "." + key + "' must be a count");
+    return o[key].get<std::uint64_t>();
+  };
+  ServoTimingRecord t;
+  const Json& rt = object(j, "realtime");
+  if (!rt.contains("summary") || !rt["summary"].is_string())
+    FailFile(path, "key 'realtime.summary' must be a string");
+  t.realtime_summary = rt["summary"].get<std::string>();
+  if (!rt.contains("fifo") || !rt["fifo"].is_boolean())
+    FailFile(path, "key 'realtime.fifo' must be true or false");
+  t.fifo = rt["fifo"].get<bool>();
+  if (rt.contains("refusals")) {
+    if (!rt["refusals"].is_array()) FailFile(path, "key 'realtime.refusals' must be an array");
+    for (const Json& r : rt["refusals"]) {
+      if (!r.is_string()) FailFile(path, "key 'realtime.refusals' must hold strings");
+      t.refusals.push_back(r.get<std::string>());
+    }
+  }
+  const Json& tm = object(j, "timing");
+  t.period_s = number(tm, "period_s", "timing");
+  t.cycles = count(tm, "cycles", "timing");
+  t.overruns = count(tm, "overruns", "timing");
+  if (t.overruns > t.cycles) FailFile(path, "key 'timing.overruns' exceeds 'timing.cycles'");
+  t.max_consecutive_overruns = count(tm, "max_consecutive_overruns", "timing");
+  t.overrun_fraction = number(tm, "overrun_fraction", "timing");
+  const Json& wake = object(tm, "wakeup_latency_us");
+  t.wakeup_p50_us = number(wake, "p50", "timing.wakeup_latency_us");
+  t.wakeup_p99_us = number(wake, "p99", "timing.wakeup_latency_us");
+  t.wakeup_p999_us = number(wake, "p999", "timing.wakeup_latency_us");
+  t.wakeup_max_us = number(wake, "max", "timing.wakeup_latency_us");
+  const Json& cycle = object(tm, "cycle_duration_us");
+  t.cycle_p50_us = number(cycle, "p50", "timing.cycle_duration_us");
+  t.cycle_p99_us = number(cycle, "p99", "timing.cycle_duration_us");
+  t.cycle_p999_us = number(cycle, "p999", "timing.cycle_duration_us");
+  t.cycle_max_us = number(cycle, "max", "timing.cycle_duration_us");
+  const Json& dl = object(j, "deadline");
+  t.deadline_holds = count(dl, "holds", "deadline");
+  t.deadline_retracts = count(dl, "retracts", "deadline");
+  return t;
+}
+
 void AppendValue(std::string& row, double v, const fs::path& file, const char* column) {
   if (!std::isfinite(v)) {
     throw std::invalid_argument(file.string() + ": column '" + column +
@@ -210,6 +277,9 @@ RunRecord ReadRunRecord(const fs::path& dir) {
     }
   }
   run.has_em = Exists(run.EmPath());
+  const fs::path timing_path = dir / "timing.json";
+  run.has_timing = Exists(timing_path);
+  if (run.has_timing) run.timing = ReadTimingJson(timing_path);
   return run;
 }
 

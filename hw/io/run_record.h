@@ -12,6 +12,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <filesystem>
 #include <mutex>
 #include <optional>
@@ -65,6 +66,20 @@ struct TruthRecord {
   Eigen::Vector3d tip_mm = Eigen::Vector3d::Zero();
 };
 
+// timing.json: the servo thread's real-time settings and cycle timing (written by the demo;
+// live/servo_cycle_clock.h ServoTimingJson). Latencies in µs.
+struct ServoTimingRecord {
+  std::string realtime_summary;  // "SCHED_FIFO 80, memory locked" / "normal priority (…)"
+  bool fifo = false;
+  std::vector<std::string> refusals;
+  double period_s = 0.0;
+  std::uint64_t cycles = 0, overruns = 0, max_consecutive_overruns = 0;
+  double overrun_fraction = 0.0;
+  double wakeup_p50_us = 0.0, wakeup_p99_us = 0.0, wakeup_p999_us = 0.0, wakeup_max_us = 0.0;
+  double cycle_p50_us = 0.0, cycle_p99_us = 0.0, cycle_p999_us = 0.0, cycle_max_us = 0.0;
+  std::uint64_t deadline_holds = 0, deadline_retracts = 0;
+};
+
 struct RunRecord {
   std::filesystem::path dir;
   RunInfo info;
@@ -72,12 +87,15 @@ struct RunRecord {
   std::vector<ServoRecord> servo;      // empty: no servo.csv
   std::vector<LatencyRecord> latency;  // empty: no latency.csv
   std::vector<TruthRecord> truth;      // empty: no truth.csv
+  ServoTimingRecord timing;            // timing.json, when has_timing
   bool has_servo = false, has_latency = false, has_em = false, has_truth = false;
+  bool has_timing = false;
 
   std::filesystem::path EmPath() const { return dir / "em.csv"; }
 };
 
-// Throws std::invalid_argument (missing folder, run.json or targets.csv; a bad file).
+// Throws std::invalid_argument (missing folder, run.json or targets.csv; a bad file,
+// timing.json included, naming the file and the key).
 RunRecord ReadRunRecord(const std::filesystem::path& dir);
 
 // Writes a RUN directory as the pipeline runs: run.json at once, each CSV with its header

@@ -52,8 +52,24 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
   EXPECT_EQ(j["limit_violations"].get<int>(), 0);
   // 40 Hz EM tracker over 8 s.
   EXPECT_NEAR(j["em_samples"].get<int>(), 321, 1);
+  // The servo thread's timing: every cycle timed, its overruns within the cycles; the
+  // real-time settings granted or, if the system refused them, the refusal said.
+  const auto& timing = j["timing"];
+  EXPECT_EQ(timing["cycles"].get<int>(), 8001);
+  EXPECT_LE(timing["overruns"].get<int>(), 8001);
+  EXPECT_NEAR(timing["overrun_fraction"].get<double>(), timing["overruns"].get<double>() / 8001.0,
+              1e-9);
+  EXPECT_LE(timing["wakeup_latency_us"]["p50"].get<double>(),
+            timing["wakeup_latency_us"]["p99"].get<double>());
+  EXPECT_LE(timing["wakeup_latency_us"]["p99"].get<double>(),
+            timing["wakeup_latency_us"]["max"].get<double>());
+  const auto& rt = j["realtime"];
+  EXPECT_TRUE(rt["requested"].get<bool>());
+  if (!rt["fifo"].get<bool>() || !rt["memory_locked"].get<bool>())
+    EXPECT_FALSE(rt["refusals"].empty()) << rt.dump();  // never silently ignored
+  EXPECT_EQ(j["deadline"]["hold_after_overruns"].get<int>(), 5);
   for (const char* f : {"run.json", "targets.csv", "servo.csv", "latency.csv", "em.csv",
-                        "truth.csv", "report.html"})
+                        "truth.csv", "timing.json", "report.html"})
     EXPECT_TRUE(fs::exists(run / f)) << f;
   EXPECT_EQ(ReadFile(run / "em.csv").substr(0, 25), "t_s,x_mm,y_mm,z_mm,status");
   // The report aligns the EM log (with the run's EM calibration) and measures the run.
@@ -64,6 +80,11 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
   ASSERT_TRUE(rj["tip_to_target_rms_mm"].is_number()) << rep.out;
   EXPECT_TRUE(std::isfinite(rj["tip_to_target_rms_mm"].get<double>()));
   EXPECT_TRUE(fs::exists(dir.path() / "report.html"));
+  // The report carries the run's timing.json.
+  ASSERT_TRUE(rj["servo_timing"].is_object()) << rep.out;
+  EXPECT_EQ(rj["servo_timing"]["cycles"], timing["cycles"]);
+  EXPECT_EQ(rj["servo_timing"]["wakeup_latency_us"]["p99"], timing["wakeup_latency_us"]["p99"]);
+  EXPECT_NE(ReadFile(dir.path() / "report.html").find("id=\"servo-timing\""), std::string::npos);
 }
 
 TEST(DemoCli, BadOptionsAreClearErrors) {

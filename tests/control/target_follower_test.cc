@@ -481,5 +481,168 @@ TEST(TargetFollower, TravelBitFollowsTheClampAndClearsWhenTheReferenceReturns) {
   EXPECT_NEAR(clamped, 181, 1);
 }
 
+// Missed deadlines (control/deadline_watchdog.h drives these hooks). A follower following
+// the target with c = 30 mm; `Following` steps it to t_s with the tip at tip_mm.
+TargetFollower DeadlineFollower(const FollowerConfig& c) {
+  TargetFollower f(c);
+  f.Update(0.0, 1.0);
+  f.Enable(0.0);
+  EXPECT_TRUE(f.Accept(Estimate(0.0, 31.0, 0.0), 0.0));
+  return f;
+}
+
+void UpdateUntil(TargetFollower& f, double from_s, double to_s, double tip_mm) {
+  for (double t = from_s; t < to_s - 1e-9; t += 0.001) f.Update(t, tip_mm);
+}
+
+TEST(TargetFollowerDeadline, AHoldKeepsTheTipUntilClearedAndFreshEstimatesDoNotEndIt) {
+  FollowerConfig c;
+  c.standoff_mm = 3.0;
+  TargetFollower f = DeadlineFollower(c);
+  UpdateUntil(f, 0.001, 0.1, 1.0);
+  ASSERT_EQ(f.mode(), FollowerMode::kFollowing);
+  f.Update(0.1, 1.1);
+  f.DeadlineHold(0.1);
+  EXPECT_EQ(f.mode(), FollowerMode::kHolding);
+  EXPECT_TRUE(f.faults() & follower_fault::kDeadlineHold);
+  // The reference stays at the tip of the hold, whatever the tip does and however often the
+  // hold is asked for again.
+  for (double t = 0.101; t < 0.2; t += 0.001) {
+    f.Update(t, 1.1 + 0.5 * (t - 0.1));
+    f.DeadlineHold(t);
+    const MotionSample m = f.Evaluate(t);
+    EXPECT_DOUBLE_EQ(m.position_mm, 1.1) << t;
+    EXPECT_DOUBLE_EQ(m.velocity_mm_s, 0.0) << t;
+  }
+  ASSERT_TRUE(f.Accept(Estimate(0.15, 31.15, 0.0), 0.15));
+  f.Update(0.2, 1.15);
+  EXPECT_EQ(f.mode(), FollowerMode::kHolding);
+  // Cleared: following again, at once.
+  f.DeadlineCleared(0.2);
+  EXPECT_EQ(f.mode(), FollowerMode::kFollowing);
+  EXPECT_FALSE(f.faults() & follower_fault::kDeadlineHold);
+  EXPECT_NEAR(f.Evaluate(0.201).position_mm, Target(0.201) - 3.0 - f.offset_mm(), 1e-9);
+  EXPECT_EQ(f.counters().stale_events, 0u);
+  f.DeadlineCleared(0.21);  // nothing to clear: no effect
+  EXPECT_EQ(f.mode(), FollowerMode::kFollowing);
+}
+
+TEST(TargetFollowerDeadline, ARetractionMovesBackByRetractMmAtRetractSpeedFromNowUntilEnable) {
+  FollowerConfig c;
+  c.retract_after_s = 0.3;  // the stale path's delay: no part of a deadline retraction
+  c.retract_mm = 4.0;
+  c.retract_speed_mm_s = 20.0;
+  TargetFollower f = DeadlineFollower(c);
+  UpdateUntil(f, 0.001, 0.1, 1.0);
+  f.Update(0.1, 1.25);
+  f.DeadlineRetract(0.1);
+  EXPECT_EQ(f.mode(), FollowerMode::kRetracting);
+  EXPECT_TRUE(f.faults() & follower_fault::kDeadlineRetract);
+  EXPECT_FALSE(f.faults() & follower_fault::kRetracted);  // that is the stale path's bit
+  EXPECT_DOUBLE_EQ(f.Evaluate(0.1).position_mm, 1.25);
+  const MotionSample m = f.Evaluate(0.15);
+  EXPECT_NEAR(m.position_mm, 1.25 - 20.0 * 0.05, 1e-9);
+  EXPECT_DOUBLE_EQ(m.velocity_mm_s, -20.0);
+  // 4 mm at 20 mm/s: done 0.2 s after the retraction began.
+  EXPECT_NEAR(f.Evaluate(0.2999).position_mm, 1.25 - 20.0 * 0.1999, 1e-9);
+  EXPECT_NEAR(f.Evaluate(0.31).position_mm, 1.25 - 4.0, 1e-12);
+  EXPECT_DOUBLE_EQ(f.Evaluate(0.31).velocity_mm_s, 0.0);
+  // Latched: neither fresh estimates nor DeadlineCleared resume; Enable does, clearing the bit.
+  UpdateUntil(f, 0.101, 0.4, 0.5);
+  ASSERT_TRUE(f.Accept(Estimate(0.35, 30.5, 0.0), 0.4));
+  f.DeadlineCleared(0.4);
+  f.Update(0.4, 0.5);
+  EXPECT_EQ(f.mode(), FollowerMode::kRetracting);
+  EXPECT_TRUE(f.faults() & follower_fault::kDeadlineRetract);
+  f.Enable(0.4);
+  EXPECT_EQ(f.mode(), FollowerMode::kFollowing);
+  EXPECT_FALSE(f.faults() & (follower_fault::kDeadlineRetract | follower_fault::kDeadlineHold));
+}
+
+TEST(TargetFollowerDeadline, ARetractionDuringAHoldStartsAtOnceFromTheHeldTip) {
+  FollowerConfig c;
+  c.retract_after_s = 0.3;
+  c.retract_mm = 4.0;
+  c.retract_speed_mm_s = 20.0;
+  TargetFollower f = DeadlineFollower(c);
+  UpdateUntil(f, 0.001, 0.1, 1.0);
+  f.DeadlineHold(0.1);
+  UpdateUntil(f, 0.1, 0.12, 1.3);  // the tip drifts; the hold stays at 1.0
+  f.DeadlineRetract(0.12);
+  EXPECT_EQ(f.mode(), FollowerMode::kRetracting);
+  EXPECT_EQ(f.faults() & (follower_fault::kDeadlineHold | follower_fault::kDeadlineRetract),
+            follower_fault::kDeadlineRetract);
+  EXPECT_DOUBLE_EQ(f.Evaluate(0.12).position_mm, 1.0);
+  EXPECT_NEAR(f.Evaluate(0.17).position_mm, 1.0 - 20.0 * 0.05, 1e-9);
+  EXPECT_NEAR(f.Evaluate(1.0).position_mm, 1.0 - 4.0, 1e-12);
+}
+
+TEST(TargetFollowerDeadline, ClearedWithAStaleEstimateHoldsOnAsStaleAndRetractsAtTheHoldsTime) {
+  FollowerConfig c;
+  c.stale_after_s = 0.2;
+  c.retract_after_s = 0.3;
+  c.retract_speed_mm_s = 20.0;
+  TargetFollower f = DeadlineFollower(c);
+  UpdateUntil(f, 0.001, 0.1, 1.0);
+  f.DeadlineHold(0.1);
+  UpdateUntil(f, 0.1, 0.35, 1.0);  // the estimate (received at 0) is stale from 0.2 s
+  f.DeadlineCleared(0.35);
+  EXPECT_EQ(f.mode(), FollowerMode::kHolding);
+  EXPECT_EQ(f.faults() & (follower_fault::kDeadlineHold | follower_fault::kStaleEstimate),
+            follower_fault::kStaleEstimate);
+  EXPECT_EQ(f.counters().stale_events, 1u);
+  // The hold began at 0.1 s: the stale path retracts at 0.4 s, from 1.0 mm.
+  UpdateUntil(f, 0.35, 0.399, 1.0);
+  EXPECT_EQ(f.mode(), FollowerMode::kHolding);
+  f.Update(0.4005, 1.0);
+  EXPECT_EQ(f.mode(), FollowerMode::kRetracting);
+  EXPECT_NEAR(f.Evaluate(0.45).position_mm, 1.0 - 20.0 * 0.05, 1e-9);
+}
+
+TEST(TargetFollowerDeadline, ADisabledOrStoppedFollowerOnlyGetsTheFaultBits) {
+  TargetFollower idle(FollowerConfig{});
+  idle.Update(0.0, 2.0);
+  idle.DeadlineHold(0.0);
+  idle.DeadlineRetract(0.001);
+  idle.Update(0.5, 2.0);
+  EXPECT_EQ(idle.mode(), FollowerMode::kDisabled);
+  EXPECT_EQ(idle.faults(), follower_fault::kDeadlineRetract);
+  EXPECT_DOUBLE_EQ(idle.Evaluate(0.5).position_mm, 2.0);
+
+  TargetFollower stopped = DeadlineFollower(FollowerConfig{});
+  stopped.Update(0.05, 0.7);
+  stopped.Stop(0.05);
+  stopped.DeadlineRetract(0.06);
+  EXPECT_EQ(stopped.mode(), FollowerMode::kStopped);
+  EXPECT_TRUE(stopped.faults() & follower_fault::kDeadlineRetract);
+  EXPECT_DOUBLE_EQ(stopped.Evaluate(1.0).position_mm, 0.7);
+}
+
+// The tip history is a ring of history_capacity samples. With 16 at 1 kHz it holds 15 ms
+// and wraps 60 times in a second: the tip at an acquisition inside it is interpolated (the
+// offset is exact for a tip moving x = 2t), one older than it gets the oldest sample. The
+// default (2048) holds the whole last second.
+TEST(TargetFollower, TheTipHistoryRingInterpolatesAfterWrappingAndKeepsItsCapacity) {
+  auto offset_for = [](std::size_t capacity, double acquired_s) {
+    FollowerConfig c;
+    c.history_capacity = capacity;
+    TargetFollower f(c);
+    for (int k = 0; k <= 1000; ++k) f.Update(k * 1e-3, 2.0 * k * 1e-3);
+    f.Enable(1.0);
+    EXPECT_TRUE(f.Accept(Estimate(acquired_s, 2.0 * acquired_s + 10.0, 0.0), 1.0));
+    return f.offset_mm();
+  };
+  EXPECT_NEAR(offset_for(16, 0.9935), 10.0, 1e-9);
+  EXPECT_NEAR(offset_for(2048, 0.9935), 10.0, 1e-9);
+  EXPECT_NEAR(offset_for(2048, 0.0125), 10.0, 1e-9);
+  // 50 ms back is older than the 16 samples (0.985–1.0 s): x = 1.97 mm, the oldest one.
+  EXPECT_NEAR(offset_for(16, 0.95), 2.0 * 0.95 + 10.0 - 1.97, 1e-9);
+  FollowerConfig c;
+  c.history_capacity = 15;
+  EXPECT_THROW(TargetFollower{c}, std::invalid_argument);
+  c.history_capacity = 2'000'000;
+  EXPECT_THROW(TargetFollower{c}, std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace echoservo::control

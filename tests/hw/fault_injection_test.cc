@@ -1,10 +1,11 @@
 // hw::FaultInjectingHardware: mirrors the wrapped hardware's interfaces and lifecycle,
 // passes readings through outside the fault windows and corrupts them inside (NaN, ±inf,
-// frozen at the last good value, offset), counting each corrupted sample.
+// frozen at the last good value, offset, or a slow read), counting each corrupted sample.
 #include "hw/fault_injection.h"
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 
 #include "hw/seed_plant.h"
@@ -88,6 +89,37 @@ TEST(FaultInjectingHardware, RejectsAFaultOnAnUnknownInterfaceOrAnInvertedWindow
   EXPECT_THROW(FaultInjectingHardware(rig.plant, {{std::string(iface::kTipPosition), false,
                                                    FaultKind::kNaN, 1, 0, 0}}),
                std::invalid_argument);
+}
+
+TEST(FaultInjectingHardware, ASlowReadTakesItsTimeInsideTheWindowAndChangesNoReading) {
+  Rig rig;
+  const std::string base(iface::kBasePosition);
+  FaultInjectingHardware f(rig.plant, {{base, false, FaultKind::kSlowRead, 0.010, 0.013, 2.0}});
+  f.Configure();
+  f.Activate();
+  const std::size_t b = f.StateIndex(iface::kBasePosition);
+  using Clock = std::chrono::steady_clock;
+  double fastest_inside_ms = 1e9;
+  int slow_outside = 0;  // reads outside the window that took 2 ms (a preempted test thread)
+  for (int k = 0; k < 20; ++k) {
+    f.set_command(rig.force_cmd, 2.0);
+    const auto start = Clock::now();
+    f.read(k * 1e-3, 1e-3);
+    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    EXPECT_EQ(f.state(b), rig.plant.state(b));
+    const bool inside = k >= 10 && k < 13;
+    if (inside) fastest_inside_ms = std::min(fastest_inside_ms, ms);
+    if (!inside && ms >= 2.0) ++slow_outside;
+    f.write(k * 1e-3, 1e-3);
+  }
+  EXPECT_GE(fastest_inside_ms, 2.0);  // a busy wait of 2 ms cannot end sooner
+  EXPECT_LE(slow_outside, 1);
+  EXPECT_EQ(f.injected(), 3u);
+  for (double ms : {0.0, -1.0, 1001.0, std::nan("")}) {
+    EXPECT_THROW(FaultInjectingHardware(rig.plant, {{base, false, FaultKind::kSlowRead, 0, 1, ms}}),
+                 std::invalid_argument)
+        << ms;
+  }
 }
 
 }  // namespace

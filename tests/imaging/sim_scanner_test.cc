@@ -11,6 +11,7 @@
 #include "imaging/sim/probe.h"
 #include "imaging/sim/scene.h"
 #include "imaging/sim/simulated_scanner.h"
+#include "tests/test_util/sanitizers.h"
 
 namespace echoservo::imaging::sim {
 namespace {
@@ -148,6 +149,7 @@ double BrightestDepthOnCentralBeam(const Volume& v) {
 }
 
 TEST(SimScanner, SpeedOfSoundScalesDisplayedDepth) {
+  ECHOSERVO_RELEASE_SUITE_ONLY("three full renders; the renderer's paths run in the other cases");
   const double d = 60.0;
   for (double c : {1482.0, 1540.0, 1600.0}) {
     SimulatedScanner scanner(SingleReflector(d, c));
@@ -187,6 +189,7 @@ TEST(SimScanner, GuidewireReverberatesDeeperAlongTheBeam) {
 }
 
 TEST(SimScanner, DeterministicForAFixedSeed) {
+  ECHOSERVO_RELEASE_SUITE_ONLY("five full renders compared; the renderer runs in the other cases");
   SimulatedScannerOptions o;
   o.seed = 7;
   SimulatedScanner a(o), b(o);

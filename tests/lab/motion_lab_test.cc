@@ -7,6 +7,7 @@
 #include "lab/candidate_ranking.h"
 #include "lab/motion_diagnosis.h"
 #include "tests/test_util/expect_error.h"
+#include "tests/test_util/sanitizers.h"
 
 namespace echoservo::lab {
 namespace {
@@ -38,6 +39,10 @@ class MotionDiagnose : public ::testing::TestWithParam<Hidden> {};
 
 TEST_P(MotionDiagnose, NamesTheHiddenEffect) {
   const Hidden h = GetParam();
+  // Every case takes the same path (fits of the same candidates); under the sanitizers, where
+  // each takes 3-5 s, the respiration case runs for all four.
+  if (std::string(h.name) != "respiration")
+    ECHOSERVO_RELEASE_SUITE_ONLY("the respiration case takes the same diagnosis path");
   const estimation::MotionTrace trace = Trace(h.harmonics, h.respiration_mm, h.drift);
   const MotionDiagnosis d = DiagnoseMotion(ParseMotionModel(h.model), trace);
   EXPECT_NEAR(d.noise_mm, 0.3, 0.05);  // the synthetic noise σ

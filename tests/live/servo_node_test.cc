@@ -1,15 +1,18 @@
 // live::ServoNode without a link (estimates and commands fed directly, on the simulated
 // catheter): the mode and fault mapping onto the state topic, the operator's commands, the
 // stale-estimate watchdog (hold after stale_after_s, retract after retract_after_s more),
-// a stop honoured in the cycle it arrives in, non-finite estimates rejected and counted,
-// and every limit respected on every cycle (limit_violations = 0).
+// a stop honoured in the cycle it arrives in (and one queued overtaking the commands before
+// it), non-finite estimates rejected and counted, every limit respected on every cycle
+// (limit_violations = 0), and the deadline watchdog's hold and retraction.
 #include "live/servo_node.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
 
 #include "hw/hardware_interface.h"
 #include "live/sim_catheter.h"
@@ -261,6 +264,159 @@ TEST(ServoNode, TimeAtTheTravelClampIsCountedAndEveryClampedCycleIsAnInterventio
   EXPECT_LE(bit_cycles, clamped_cycles + 4 * 10);
   EXPECT_EQ(st.image_not_responding, 0u);
   EXPECT_EQ(st.limit_violations, 0u);
+}
+
+// The deadline watchdog in the node, on a fixed simulated clock, the loop driver's calls
+// made by hand: cycles that overran (work ending 1.2 ms after a 1 ms deadline) and one
+// wake-up 60 ms late. K = 5 consecutive overruns hold the tip where it is while the target
+// keeps moving (its setpoint moves 0.3 mm in those 25 ms at t = 1.5 s: 2 mm · 2π rad/s);
+// 200 on-time cycles end the hold; a 60 ms outage (> retract_after_s = 50 ms) retracts,
+// latched through fresh estimates (auto_enable does not resume) until an ENABLE.
+TEST(ServoNodeDeadlines, OverrunsHoldTheTipAnOutageRetractsAndAnEnableClears) {
+  ServoNodeOptions o;
+  o.follower.standoff_mm = 3.0;
+  o.auto_enable = true;
+  o.watchdog.hold_after_overruns = 5;
+  o.watchdog.retract_after_s = 0.05;
+  o.watchdog.resume_after_on_time = 200;
+  Rig rig(o);
+  std::uint64_t seq = 0;
+  // One cycle as ServoCycleClock drives it: wake `late_s` after the deadline, work, end.
+  auto step = [&](double late_s, bool overran) {
+    if (rig.k % 40 == 0) rig.node.HandleTarget(Estimate(rig.t(), ++seq, rig.Tip()), rig.t());
+    const double t = rig.t();
+    rig.node.NoteWake(t, late_s);
+    const ServoCycle c = rig.Step();
+    rig.node.NoteCycleEnd(t + (overran ? 1.2e-3 : 0.3e-3), overran);
+    return c;
+  };
+  auto target_setpoint = [](double t) { return 10.0 + 2.0 * std::sin(2 * M_PI * t) - 3.0; };
+  ServoCycle c;
+  while (rig.t() < 1.5) c = step(0.0, false);
+  ASSERT_EQ(c.mode, link::ServoMode::kTracking);
+
+  // K − 1 overruns: still following.
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(step(0.0, true).mode, link::ServoMode::kTracking);
+  // The K-th: the hold is in force from the next cycle on.
+  step(0.0, true);
+  const double hold_start_s = rig.t();
+  c = step(0.0, true);
+  ASSERT_EQ(c.mode, link::ServoMode::kHolding);
+  EXPECT_TRUE(c.faults & link::fault::kDeadlineHold);
+  EXPECT_TRUE(rig.node.State(rig.t()).faults & link::fault::kDeadlineHold);
+  const double held_mm = c.record.reference_mm;
+  double max_dev_mm = 0.0;
+  while (rig.t() < hold_start_s + 0.025) {  // still overrunning, 30 ms in all (< 50 ms)
+    c = step(0.0, true);
+    ASSERT_EQ(c.mode, link::ServoMode::kHolding);
+    max_dev_mm = std::max(max_dev_mm, std::abs(c.record.reference_mm - held_mm));
+  }
+  EXPECT_LE(max_dev_mm, 0.05);
+  EXPECT_GT(std::abs(target_setpoint(rig.t()) - target_setpoint(hold_start_s)), 0.2);
+  EXPECT_EQ(rig.node.stats().deadline_holds, 1u);
+  EXPECT_EQ(rig.node.stats().deadline_retracts, 0u);
+
+  // On time again: the hold ends after resume_after_on_time cycles, following resumes.
+  int on_time = 0;
+  do {
+    c = step(0.0, false);
+    ++on_time;
+  } while (c.mode != link::ServoMode::kTracking && on_time < 400);
+  EXPECT_GE(on_time, 200);
+  EXPECT_LE(on_time, 202);
+  EXPECT_FALSE(c.faults & link::fault::kDeadlineHold);
+  while (rig.t() < 2.5) c = step(0.0, false);
+  EXPECT_EQ(c.mode, link::ServoMode::kTracking);
+  EXPECT_NEAR(c.record.reference_mm, target_setpoint(rig.t()), 0.05);
+
+  // An outage: the cycle due now wakes 60 ms late (the loop skips the missed cycles).
+  rig.k += 60;
+  c = step(0.060, false);
+  c = step(0.0, false);
+  ASSERT_EQ(c.mode, link::ServoMode::kRetracting);
+  EXPECT_TRUE(c.faults & link::fault::kDeadlineRetract);
+  EXPECT_TRUE(rig.node.State(rig.t()).faults & link::fault::kDeadlineRetract);
+  EXPECT_EQ(rig.node.stats().deadline_retracts, 1u);
+  const double retract_from_mm = c.record.reference_mm;
+  const double retract_start_s = rig.t();
+  while (rig.t() < retract_start_s + 0.1) {  // estimates keep coming: no auto-resume
+    c = step(0.0, false);
+    ASSERT_EQ(c.mode, link::ServoMode::kRetracting);
+  }
+  // Back at retract_speed_mm_s = 20 mm/s: 2 mm in 0.1 s (a cycle either side).
+  EXPECT_NEAR(retract_from_mm - c.record.reference_mm, 2.0, 0.05);
+  EXPECT_EQ(rig.node.stats().resumes, 0u);
+
+  // The operator's ENABLE (through the command queue) clears it: following again.
+  rig.node.EnqueueCommand(Command(link::ServoAction::kEnable, rig.t(), 3.0));
+  while (rig.t() < retract_start_s + 0.2) c = step(0.0, false);
+  EXPECT_EQ(c.mode, link::ServoMode::kTracking);
+  EXPECT_FALSE(c.faults & (link::fault::kDeadlineHold | link::fault::kDeadlineRetract));
+  EXPECT_EQ(rig.node.watchdog().action(), control::DeadlineAction::kNone);
+  EXPECT_EQ(rig.node.stats().limit_violations, 0u);
+}
+
+TEST(ServoNodeDeadlines, BadWatchdogOptionsThrowNamingTheOption) {
+  auto message = [](control::DeadlineWatchdogConfig w) {
+    ServoNodeOptions o;
+    o.watchdog = w;
+    try {
+      Rig rig(o);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  control::DeadlineWatchdogConfig zero;
+  zero.hold_after_overruns = 0;
+  EXPECT_NE(message(zero).find("--deadline-hold-after"), std::string::npos) << message(zero);
+  control::DeadlineWatchdogConfig early;  // retraction before the hold: 5 ms ≤ 10 · 1 ms
+  early.hold_after_overruns = 10;
+  early.retract_after_s = 0.005;
+  EXPECT_NE(message(early).find("--deadline-retract-after-ms"), std::string::npos)
+      << message(early);
+}
+
+// Commands queued from another thread (the command subscriber's path): a STOP drops what
+// was queued before it and is applied in the next cycle; what follows it still applies,
+// in order; a STOP followed by more commands than the queue holds, within one cycle, still
+// stops (and the overwritten ones are counted).
+TEST(ServoNode, AQueuedStopOvertakesTheCommandsQueuedBeforeIt) {
+  ServoNodeOptions o;
+  o.follower.standoff_mm = 3.0;
+  o.auto_enable = true;
+  Rig rig(o);
+  std::uint64_t seq = 0;
+  ServoCycle c = rig.RunUntil(1.0, true, &seq);
+  ASSERT_EQ(c.mode, link::ServoMode::kTracking);
+  std::uint64_t applied = rig.node.stats().commands_applied;
+  rig.node.EnqueueCommand(Command(link::ServoAction::kSetStandoff, rig.t(), 6.0));
+  rig.node.EnqueueCommand(Command(link::ServoAction::kStop, rig.t()));
+  c = rig.Step();
+  EXPECT_EQ(c.mode, link::ServoMode::kStopped);
+  EXPECT_DOUBLE_EQ(rig.node.follower().config().standoff_mm, 3.0);  // dropped by the STOP
+  EXPECT_EQ(rig.node.stats().commands_applied, applied + 1);
+
+  rig.node.EnqueueCommand(Command(link::ServoAction::kStop, rig.t()));
+  rig.node.EnqueueCommand(Command(link::ServoAction::kEnable, rig.t(), 4.0));
+  rig.Step();
+  EXPECT_DOUBLE_EQ(rig.node.follower().config().standoff_mm, 4.0);
+  EXPECT_EQ(rig.node.stats().commands_applied, applied + 3);
+  c = rig.RunUntil(rig.t() + 0.2, true, &seq);
+  ASSERT_EQ(c.mode, link::ServoMode::kTracking);
+
+  applied = rig.node.stats().commands_applied;
+  rig.node.EnqueueCommand(Command(link::ServoAction::kStop, rig.t()));
+  const std::size_t more = ServoNode::kMaxQueuedCommands + 6;
+  for (std::size_t i = 0; i < more; ++i)
+    rig.node.EnqueueCommand(Command(link::ServoAction::kSetStandoff, rig.t(), 5.0));
+  c = rig.Step();
+  EXPECT_EQ(c.mode, link::ServoMode::kStopped);
+  EXPECT_EQ(rig.node.stats().commands_dropped, 7u);  // the STOP and the 6 oldest after it
+  EXPECT_EQ(rig.node.stats().commands_applied, applied + ServoNode::kMaxQueuedCommands + 1);
+  EXPECT_DOUBLE_EQ(rig.node.follower().config().standoff_mm, 5.0);
+  EXPECT_EQ(rig.node.commands_queued(), 4 + more + 1);
+  EXPECT_EQ(rig.node.stats().limit_violations, 0u);
 }
 
 }  // namespace

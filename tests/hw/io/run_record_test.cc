@@ -111,6 +111,53 @@ TEST(RunRecord, OptionalFilesMayBeAbsent) {
   EXPECT_EQ(run.targets.size(), 2u);
 }
 
+// timing.json as the demo writes it (live/servo_cycle_clock.h ServoTimingJson).
+const char* kTimingJson = R"({"realtime": {"requested": true, "fifo": true, "priority": 80,
+  "pinned": false, "cpu": null, "memory_locked": true, "refusals": [],
+  "summary": "SCHED_FIFO 80, memory locked"},
+ "timing": {"period_s": 0.001, "cycles": 8001, "overruns": 3, "overrun_fraction": 0.000375,
+  "max_consecutive_overruns": 2,
+  "wakeup_latency_us": {"p50": 52, "p99": 81, "p999": 140, "max": 812, "mean": 55, "count": 8001},
+  "cycle_duration_us": {"p50": 20, "p99": 45, "p999": 90, "max": 1210, "mean": 22, "count": 8001}},
+ "deadline": {"hold_after_overruns": 5, "retract_after_ms": 50, "resume_after_on_time": 200,
+  "holds": 0, "retracts": 0}})";
+
+TEST(RunRecord, TimingJsonReadsBackAndABadOneNamesTheKey) {
+  const TempDir dir("run_record_timing");
+  const fs::path run = dir.path() / "run";
+  WriteSmallRun(run);
+  EXPECT_FALSE(hw::ReadRunRecord(run).has_timing);
+  WriteLines(run / "timing.json", {kTimingJson});
+  const hw::RunRecord r = hw::ReadRunRecord(run);
+  ASSERT_TRUE(r.has_timing);
+  EXPECT_EQ(r.timing.realtime_summary, "SCHED_FIFO 80, memory locked");
+  EXPECT_TRUE(r.timing.fifo);
+  EXPECT_EQ(r.timing.cycles, 8001u);
+  EXPECT_EQ(r.timing.overruns, 3u);
+  EXPECT_EQ(r.timing.max_consecutive_overruns, 2u);
+  EXPECT_DOUBLE_EQ(r.timing.wakeup_p99_us, 81.0);
+  EXPECT_DOUBLE_EQ(r.timing.wakeup_max_us, 812.0);
+  EXPECT_DOUBLE_EQ(r.timing.cycle_p999_us, 90.0);
+  EXPECT_EQ(r.timing.deadline_holds, 0u);
+
+  auto edited = [](const std::string& from, const std::string& to) {
+    std::string t = kTimingJson;
+    return t.replace(t.find(from), from.size(), to);
+  };
+  const std::pair<std::string, std::string> bad[] = {
+      {"{", "timing.json: not valid JSON"},
+      {"[]", "key 'realtime' must be an object"},
+      {edited("\"overruns\": 3", "\"overruns\": 9999"),
+       "'timing.overruns' exceeds 'timing.cycles'"},
+      {edited("\"p99\": 81", "\"p99\": -1"), "'timing.wakeup_latency_us.p99' must be a number ≥ 0"},
+      {edited("\"holds\": 0", "\"holds\": \"x\""), "'deadline.holds' must be a count"},
+  };
+  for (const auto& [text, why] : bad) {
+    WriteLines(run / "timing.json", {text});
+    ExpectContains(InvalidArgumentMessage([&] { hw::ReadRunRecord(run); }), why);
+  }
+}
+
 TEST(RunRecord, WriterRejectsBadRows) {
   const TempDir dir("run_writer");
   hw::RunWriter w(dir.path(), {});
