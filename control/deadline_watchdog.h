@@ -14,9 +14,9 @@
 namespace echoservo::control {
 
 struct DeadlineWatchdogConfig {
-  int hold_after_overruns = 5;     // K ≥ 1 consecutive overruns → hold
-  double retract_after_s = 0.05;   // no on-time cycle for this long → retract
-  int resume_after_on_time = 200;  // on-time cycles that end a hold (≥ 1)
+  int hold_after_overruns = 10;   // K ≥ 1 consecutive overruns → hold
+  double retract_after_s = 0.05;  // no on-time cycle for this long → retract
+  int resume_after_on_time = 50;  // on-time cycles that end a hold (≥ 1)
   // Throws std::invalid_argument naming the option (--deadline-hold-after,
   // --deadline-retract-after-ms, --deadline-resume-after) when K < 1, when the retraction
   // would come before the hold (retract_after_s ≤ K · period_s), or resume < 1.

@@ -21,11 +21,11 @@ void AddRealtimeFlags(CLI::App& cmd, RealtimeFlags& f) {
                  "while the servo runs, keep every CPU out of idle states slower to leave than "
                  "this, µs (PM QoS, /dev/cpu_dma_latency; default 0; -1: not requested)");
   cmd.add_option("--deadline-hold-after", f.hold_after,
-                 "hold the tip after this many consecutive overrun cycles (default 5)");
+                 "hold the tip after this many consecutive overrun cycles (default 10)");
   cmd.add_option("--deadline-retract-after-ms", f.retract_after_ms,
                  "retract when no cycle has ended on time for this long, ms (default 50)");
   cmd.add_option("--deadline-resume-after", f.resume_after,
-                 "on-time cycles that end a deadline hold (default 200)");
+                 "on-time cycles that end a deadline hold (default 50)");
   cmd.add_option("--inject-slow-read", f.slow_reads,
                  "FROM_S,TO_S,MS: the hardware read takes MS ms in the cycles of [FROM_S, TO_S) "
                  "(provokes the deadline watchdog; repeatable)");

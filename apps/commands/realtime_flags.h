@@ -24,9 +24,9 @@ struct RealtimeFlags {
   int servo_cpu = -1;
   bool no_mlock = false;
   int cpu_latency_us = 0;
-  int hold_after = 5;
+  int hold_after = 10;
   double retract_after_ms = 50.0;
-  int resume_after = 200;
+  int resume_after = 50;
   std::vector<std::string> slow_reads;  // FROM_S,TO_S,MS
 };
 

@@ -67,7 +67,7 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
   EXPECT_TRUE(rt["requested"].get<bool>());
   if (!rt["fifo"].get<bool>() || !rt["memory_locked"].get<bool>())
     EXPECT_FALSE(rt["refusals"].empty()) << rt.dump();  // never silently ignored
-  EXPECT_EQ(j["deadline"]["hold_after_overruns"].get<int>(), 5);
+  EXPECT_EQ(j["deadline"]["hold_after_overruns"].get<int>(), 10);
   for (const char* f : {"run.json", "targets.csv", "servo.csv", "latency.csv", "em.csv",
                         "truth.csv", "timing.json", "report.html"})
     EXPECT_TRUE(fs::exists(run / f)) << f;

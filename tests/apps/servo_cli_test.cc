@@ -25,8 +25,8 @@ nlohmann::json RunServo(const std::string& extra, int domain) {
 
 TEST(ServoCli, AShortRunOfSlowReadsHoldsAndTheServoResumes) {
   // Ten reads of 3 ms from t = 0.3 s: ten cycles overrun and the loop falls ~20 cycles behind,
-  // which it catches up within a millisecond: a run of overruns of ~30 ms, past K = 5 and
-  // short of the 50 ms retraction limit; 200 on-time cycles later the hold ends.
+  // which it catches up within a millisecond: a run of overruns of ~30 ms, past K = 10 and
+  // short of the 50 ms retraction limit; 50 on-time cycles later the hold ends.
   const auto j = RunServo("--inject-slow-read 0.3,0.31,3", 71);
   const auto& t = j["timing"];
   EXPECT_EQ(t["cycles"].get<int>(), 1201);

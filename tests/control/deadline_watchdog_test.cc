@@ -163,13 +163,21 @@ std::string WatchdogValidateMessage(const DeadlineWatchdogConfig& c, double peri
 }
 
 TEST(DeadlineWatchdog, BadOptionsAreRejectedNamingTheOption) {
-  DeadlineWatchdogConfig c;  // defaults: K = 5, 50 ms, 200
+  EXPECT_NO_THROW(DeadlineWatchdogConfig{}.Validate(1e-3));  // the defaults: K = 10, 50 ms, 50
+  // K = 5, 50 ms, 200 below.
+  const auto five = [] {
+    DeadlineWatchdogConfig f;
+    f.hold_after_overruns = 5;
+    f.resume_after_on_time = 200;
+    return f;
+  };
+  DeadlineWatchdogConfig c = five();
   EXPECT_NO_THROW(c.Validate(1e-3));
   c.hold_after_overruns = 0;
   EXPECT_EQ(WatchdogValidateMessage(c, 1e-3), "--deadline-hold-after 0: must be at least 1 cycle");
   c.hold_after_overruns = -3;
   EXPECT_NE(WatchdogValidateMessage(c, 1e-3).find("--deadline-hold-after -3"), std::string::npos);
-  c = {};
+  c = five();
   c.retract_after_s = 0.003;
   EXPECT_EQ(WatchdogValidateMessage(c, 1e-3),
             "--deadline-retract-after-ms 3: the retraction must come after the hold (5 "
@@ -187,7 +195,7 @@ TEST(DeadlineWatchdog, BadOptionsAreRejectedNamingTheOption) {
               std::string::npos)
         << bad;
   }
-  c = {};
+  c = five();
   c.resume_after_on_time = 0;
   EXPECT_EQ(WatchdogValidateMessage(c, 1e-3),
             "--deadline-resume-after 0: must be at least 1 on-time cycle");

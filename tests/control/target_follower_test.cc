@@ -495,6 +495,15 @@ void UpdateUntil(TargetFollower& f, double from_s, double to_s, double tip_mm) {
   for (double t = from_s; t < to_s - 1e-9; t += 0.001) f.Update(t, tip_mm);
 }
 
+// Following with the tip at 1 mm until 0.1 s, then a deadline hold; retracting at 20 mm/s.
+TargetFollower HeldAtOneMm(FollowerConfig c) {
+  c.retract_speed_mm_s = 20.0;
+  TargetFollower f = DeadlineFollower(c);
+  UpdateUntil(f, 0.001, 0.1, 1.0);
+  f.DeadlineHold(0.1);
+  return f;
+}
+
 TEST(TargetFollowerDeadline, AHoldKeepsTheTipUntilClearedAndFreshEstimatesDoNotEndIt) {
   FollowerConfig c;
   c.standoff_mm = 3.0;
@@ -563,10 +572,7 @@ TEST(TargetFollowerDeadline, ARetractionDuringAHoldStartsAtOnceFromTheHeldTip) {
   FollowerConfig c;
   c.retract_after_s = 0.3;
   c.retract_mm = 4.0;
-  c.retract_speed_mm_s = 20.0;
-  TargetFollower f = DeadlineFollower(c);
-  UpdateUntil(f, 0.001, 0.1, 1.0);
-  f.DeadlineHold(0.1);
+  TargetFollower f = HeldAtOneMm(c);
   UpdateUntil(f, 0.1, 0.12, 1.3);  // the tip drifts; the hold stays at 1.0
   f.DeadlineRetract(0.12);
   EXPECT_EQ(f.mode(), FollowerMode::kRetracting);
@@ -581,10 +587,7 @@ TEST(TargetFollowerDeadline, ClearedWithAStaleEstimateHoldsOnAsStaleAndRetractsA
   FollowerConfig c;
   c.stale_after_s = 0.2;
   c.retract_after_s = 0.3;
-  c.retract_speed_mm_s = 20.0;
-  TargetFollower f = DeadlineFollower(c);
-  UpdateUntil(f, 0.001, 0.1, 1.0);
-  f.DeadlineHold(0.1);
+  TargetFollower f = HeldAtOneMm(c);
   UpdateUntil(f, 0.1, 0.35, 1.0);  // the estimate (received at 0) is stale from 0.2 s
   f.DeadlineCleared(0.35);
   EXPECT_EQ(f.mode(), FollowerMode::kHolding);
