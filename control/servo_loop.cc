@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -101,32 +102,50 @@ std::vector<CycleRecord> RunFixedStep(ServoLoop& loop, const Trajectory& referen
 
 RealtimeStats RunRealtime(ServoLoop& loop, const Trajectory& reference,
                           BacklashCompensator& compensator, double duration_s,
-                          const std::atomic<bool>& stop, std::vector<CycleRecord>* records) {
+                          const std::atomic<bool>& stop, std::vector<CycleRecord>* records,
+                          const RealtimeOptions* realtime) {
   using Clock = std::chrono::steady_clock;
   const auto period = std::chrono::duration_cast<Clock::duration>(
       std::chrono::duration<double>(loop.config().period_s));
   RealtimeStats stats;
+  std::optional<CpuLatencyRequest> cpu_latency;
+  if (realtime != nullptr) {
+    stats.realtime = ApplyRealtime(*realtime);
+    cpu_latency.emplace(realtime->enabled ? realtime->cpu_latency_us : -1);
+    cpu_latency->Report(stats.realtime);
+  }
+  CycleTimer timer(loop.config().period_s);
   compensator.Reset();
   const Clock::time_point start = Clock::now();
+  auto since_start_s = [&](Clock::time_point p) {
+    return std::chrono::duration<double>(p - start).count();
+  };
   loop.Start(0.0);
+  Clock::time_point due = start;  // this cycle's scheduled start
   Clock::time_point deadline = start + period;
   for (std::size_t k = 0; !stop.load(std::memory_order_relaxed); ++k) {
-    const double t = std::chrono::duration<double>(Clock::now() - start).count();
+    const Clock::time_point woke = Clock::now();
+    const double t = since_start_s(woke);
     if (t >= duration_s) break;
+    timer.Woke(since_start_s(due), t);
     const CycleRecord r = loop.Cycle(t, k, reference, compensator);
     if (records != nullptr) records->push_back(r);
     ++stats.cycles;
     const Clock::time_point now = Clock::now();
+    timer.Finished(since_start_s(now));
     if (now > deadline) {
       ++stats.overruns;
       stats.max_lateness_s =
           std::max(stats.max_lateness_s, std::chrono::duration<double>(now - deadline).count());
-      deadline = now + period;  // resynchronise rather than burst
+      due = now;  // resynchronise rather than burst: the next cycle starts at once
+      deadline = now + period;
     } else {
       std::this_thread::sleep_until(deadline);
+      due = deadline;
       deadline += period;
     }
   }
+  stats.timing = timer.Report();
   return stats;
 }
 

@@ -16,8 +16,10 @@
 
 #include "control/backlash_compensation.h"
 #include "control/command_limiter.h"
+#include "control/cycle_timing.h"
 #include "control/friction_feedforward.h"
 #include "control/pid.h"
+#include "control/realtime.h"
 #include "hw/hardware_interface.h"
 
 namespace echoservo::control {
@@ -73,12 +75,19 @@ struct RealtimeStats {
   std::uint64_t cycles = 0;
   std::uint64_t overruns = 0;  // cycles that finished after their deadline
   double max_lateness_s = 0.0;
+  RealtimeStatus realtime;    // what the system granted (nothing asked without options)
+  CycleTimingReport timing;   // wake-up latency, cycle duration; its overruns == overruns
 };
 
 // Runs on std::chrono::steady_clock until `duration_s` or until `stop` becomes true
-// (checked every cycle). Records into `records` when non-null.
+// (checked every cycle). Records into `records` when non-null. With `realtime`, the calling
+// thread is raised first (control/realtime.h: SCHED_FIFO, CPU, locked memory; the CPU
+// latency request lasts for the run) and keeps those settings afterwards; refusals are in
+// the stats, never an error. A cycle that ends after its deadline makes the next start at
+// once (the schedule shifts by its lateness rather than bursting to catch up).
 RealtimeStats RunRealtime(ServoLoop& loop, const Trajectory& reference,
                           BacklashCompensator& compensator, double duration_s,
-                          const std::atomic<bool>& stop, std::vector<CycleRecord>* records);
+                          const std::atomic<bool>& stop, std::vector<CycleRecord>* records,
+                          const RealtimeOptions* realtime = nullptr);
 
 }  // namespace echoservo::control

@@ -347,8 +347,13 @@ DemoResult RunDemo(const DemoOptions& o) {
   result.em_samples = em.samples();
   result.em_dropouts = em.dropouts();
   result.estimates_accepted = ss.estimates_accepted;
-  result.estimates_rejected =
-      ss.estimates_rejected + servo.target_link_stats().validation.total_rejected();
+  result.rejected_link = servo.target_link_stats().validation.total_rejected();
+  result.estimates_rejected = ss.estimates_rejected + result.rejected_link;
+  const control::FollowerCounters& fc = servo.follower().counters();
+  result.rejected_non_finite = fc.rejected_non_finite;
+  result.rejected_range = fc.rejected_range;
+  result.rejected_time = fc.rejected_time;
+  result.rejected_confidence = fc.rejected_confidence;
   result.ekf_harmonics = tracker.ekf().harmonics();
   result.ekf_rate_hz = tracker.ekf().rate_hz();
   result.volumes = scanner.acquired();

@@ -89,6 +89,11 @@ struct DemoResult {
   std::string record_error;                  // --save-volumes: why the recording stopped
   std::uint64_t estimates_accepted = 0;      // by the servo
   std::uint64_t estimates_rejected = 0;
+  // Of those, rejected at the link (failed validation) and by the follower: non-finite, out
+  // of range, out of time (acquired after published, published in the future, older than
+  // the stale limit + 1 s, or not newer than the estimate in use), low confidence.
+  std::uint64_t rejected_link = 0, rejected_non_finite = 0, rejected_range = 0, rejected_time = 0,
+                rejected_confidence = 0;
   std::uint64_t em_samples = 0, em_dropouts = 0;
   std::uint64_t servo_cycles = 0, servo_overruns = 0;  // overrun: ended after the next deadline
   control::RealtimeStatus realtime;                    // what the system granted the servo thread

@@ -2,6 +2,7 @@
 // simulated scanner and catheter (live/demo_run.h). JSON: {"tip_to_target_rms_mm",
 // "true_tip_to_target_rms_mm", "latency_ms": {"p50", "p99", "max", "count"},
 // "dropped_frames", "volumes", "detected", "estimates_accepted", "estimates_rejected",
+// "estimates_rejected_by" {"link", "non_finite", "range", "time", "confidence"},
 // "em_samples", "em_dropouts", "servo_cycles", "servo_overruns", "limit_faults",
 // "ekf_harmonics", "ekf_rate_hz", "run_dir", "realtime", "timing", "deadline"} (the last three
 // as in `servo --json` and RUN/timing.json: live/servo_cycle_clock.h ServoTimingJson).
@@ -82,6 +83,12 @@ void RunDemoCommand(const DemoArgs& a) {
         {"detected", r.detected},
         {"estimates_accepted", r.estimates_accepted},
         {"estimates_rejected", r.estimates_rejected},
+        {"estimates_rejected_by",
+         {{"link", r.rejected_link},
+          {"non_finite", r.rejected_non_finite},
+          {"range", r.rejected_range},
+          {"time", r.rejected_time},
+          {"confidence", r.rejected_confidence}}},
         {"em_samples", r.em_samples},
         {"em_dropouts", r.em_dropouts},
         {"servo_cycles", r.servo_cycles},

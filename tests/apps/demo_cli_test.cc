@@ -50,6 +50,10 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
       << j.value("report_error", std::string("no report_error"));
   EXPECT_TRUE(std::isfinite(j["report_tip_to_target_rms_mm"].get<double>()));
   EXPECT_EQ(j["limit_violations"].get<int>(), 0);
+  // Every rejected estimate has its reason.
+  int by_reason = 0;
+  for (const auto& [reason, n] : j["estimates_rejected_by"].items()) by_reason += n.get<int>();
+  EXPECT_EQ(by_reason, j["estimates_rejected"].get<int>()) << j["estimates_rejected_by"].dump();
   // 40 Hz EM tracker over 8 s.
   EXPECT_NEAR(j["em_samples"].get<int>(), 321, 1);
   // The servo thread's timing: every cycle timed, its overruns within the cycles; the

@@ -4,7 +4,9 @@
 #include "control/servo_loop.h"
 
 #include <gtest/gtest.h>
+#include <sched.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -221,6 +223,34 @@ TEST(ServoLoopTest, RunRealtimeKeepsToItsScheduleAndAccountsForEveryLostCycle) {
   if (stats.overruns == 0) {
     EXPECT_EQ(stats.max_lateness_s, 0.0);
   }
+}
+
+TEST(ServoLoopTest, RunRealtimeRaisesItsThreadAndTimesEveryCycle) {
+  const SineTrajectory sine(5.0, 0.5);
+  Rig rig(sine);
+  NoCompensation none;
+  std::atomic<bool> stop{false};
+  RealtimeOptions rt;
+  rt.fifo_priority = sched_get_priority_min(SCHED_FIFO);
+  rt.lock_memory = false;  // the test runner's memory stays as it was
+  RealtimeStats stats;
+  // In a thread of its own: the settings stay with the thread that ran the loop.
+  std::thread runner([&] { stats = RunRealtime(*rig.loop, sine, none, 0.1, stop, nullptr, &rt); });
+  runner.join();
+  EXPECT_TRUE(stats.realtime.requested);
+  if (!stats.realtime.fifo) EXPECT_FALSE(stats.realtime.refusals.empty());  // said, not silent
+  EXPECT_EQ(stats.timing.cycles, stats.cycles);
+  // The timer's overruns are the loop's (the same deadlines; ±1 for a cycle ending within
+  // rounding of its deadline).
+  EXPECT_LE(std::max(stats.timing.overruns, stats.overruns) -
+                std::min(stats.timing.overruns, stats.overruns),
+            1u);
+  EXPECT_GT(stats.timing.wakeup_latency.count, 0u);
+  EXPECT_LE(stats.timing.wakeup_latency.p50_us, stats.timing.wakeup_latency.max_us);
+  // Without options nothing is asked.
+  const RealtimeStats plain = RunRealtime(*rig.loop, sine, none, 0.02, stop, nullptr);
+  EXPECT_FALSE(plain.realtime.requested);
+  EXPECT_TRUE(plain.realtime.refusals.empty());
 }
 
 TEST(ServoLoopTest, RunRealtimeStopsWithinOneCycleOfTheStopFlag) {
