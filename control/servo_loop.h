@@ -75,8 +75,8 @@ struct RealtimeStats {
   std::uint64_t cycles = 0;
   std::uint64_t overruns = 0;  // cycles that finished after their deadline
   double max_lateness_s = 0.0;
-  RealtimeStatus realtime;    // what the system granted (nothing asked without options)
-  CycleTimingReport timing;   // wake-up latency, cycle duration; its overruns == overruns
+  RealtimeStatus realtime;   // what the system granted (nothing asked without options)
+  CycleTimingReport timing;  // wake-up latency, cycle duration; its overruns == overruns
 };
 
 // Runs on std::chrono::steady_clock until `duration_s` or until `stop` becomes true
