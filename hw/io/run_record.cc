@@ -77,15 +77,19 @@ void RequireOrder(const fs::path& path, const CsvTable& t, const std::string& ea
   }
 }
 
-RunInfo ReadRunJson(const fs::path& path) {
+// The JSON document in `path`; errors name the file (`missing` says why it must exist).
+Json ParseJsonFile(const fs::path& path, const std::string& missing) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) FailFile(path, "cannot open file for reading (every RUN directory has a run.json)");
-  Json j;
+  if (!in) FailFile(path, "cannot open file for reading" + missing);
   try {
-    j = Json::parse(in);
+    return Json::parse(in);
   } catch (const Json::exception& e) {
     FailFile(path, std::string("not valid JSON: ") + e.what());
   }
+}
+
+RunInfo ReadRunJson(const fs::path& path) {
+  const Json j = ParseJsonFile(path, " (every RUN directory has a run.json)");
   if (!j.is_object()) FailFile(path, "must be a JSON object");
   if (!j.contains("format") || j["format"] != kFormat) {
     FailFile(path, std::string("key 'format' must be \"") + kFormat + "\"");
@@ -137,14 +141,7 @@ ServoTimingRecord ReadTimingJson(const fs::path& path) {
   constexpr std::uintmax_t kMaxBytes = 1 << 20;
   std::error_code ec;
   if (fs::file_size(path, ec) > kMaxBytes) FailFile(path, "larger than 1 MiB: not a timing.json");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) FailFile(path, "cannot open file for reading");
-  Json j;
-  try {
-    j = Json::parse(in);
-  } catch (const Json::exception& e) {
-    FailFile(path, std::string("not valid JSON: ") + e.what());
-  }
+  const Json j = ParseJsonFile(path, "");
   auto object = [&](const Json& parent, const char* key) -> const Json& {
     if (!parent.is_object() || !parent.contains(key) || !parent[key].is_object())
       FailFile(path, std::string("key '") + key + "' must be an object");
