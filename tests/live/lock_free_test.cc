@@ -121,13 +121,17 @@ TEST(LatestSlot, ReadsTheNewestWholeValueWhileTheWriterWrites) {
   EXPECT_EQ(e.index, 1u);
 
   constexpr std::uint64_t kWrites = 200000;
-  std::atomic<bool> writing{true};
+  std::atomic<bool> writing{true}, reading{false};
   std::thread writer([&] {
+    // Starts once the reader runs: on a loaded host the writer could otherwise finish before
+    // the reader's first look (a failure seen once in a parallel suite).
+    while (!reading.load()) std::this_thread::yield();
     for (std::uint64_t i = 2; i <= kWrites; ++i) slot.Write(MakeEntry(1, i));
     writing = false;
   });
   std::uint64_t reads = 0, torn = 0, backwards = 0, mismatched = 0, last_version = 1;
-  while (writing.load()) {
+  reading = true;
+  while (writing.load() || reads == 0) {
     const std::uint64_t v = slot.Read(e);
     ++reads;
     torn += !Whole(e);
