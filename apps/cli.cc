@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "apps/commands/bench_commands.h"
+#include "apps/commands/calibrate_command.h"
 #include "apps/commands/imaging_commands.h"
 #include "apps/commands/lab_command.h"
 #include "apps/commands/live_commands.h"
@@ -52,6 +53,7 @@ int RunOnce(int argc, const char* const* argv, bool parse_only) {
   AddBenchCommands(app);
   AddLiveCommands(app);
   AddReportCommand(app);
+  AddCalibrateCommand(app);
   // The root's parse-complete callback runs after all parsing and checks and before the
   // subcommands' callbacks (CLI::App::run_callback).
   if (parse_only) app.parse_complete_callback([] { throw ParsedOnly{}; });

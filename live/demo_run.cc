@@ -139,10 +139,18 @@ DemoResult RunDemo(const DemoOptions& o) {
     info.standoff_mm = o.standoff_mm;
     info.metadata_json =
         Fmt("{\"source\": \"echoservo demo\", \"seed\": %llu, \"duration_s\": %.3f, "
-            "\"em_to_image\": \"%s\"}",
+            "\"em_to_image\": \"%s\", \"time_base\": \"pipeline\"}",
             static_cast<unsigned long long>(o.seed), o.duration_s, RowMajor(em_to_image).c_str());
     writer = std::make_unique<hw::RunWriter>(o.out_dir, info);
   }
+  // The live EM stream's rows go to the writer: stopped before it is destroyed.
+  struct ExternalEm {
+    std::function<void()> stop;
+    ~ExternalEm() {
+      if (stop) stop();
+    }
+  } external_em;
+  if (o.external_em) external_em.stop = o.external_em(writer.get());
 
   // The DDS link (link/dds_link.h): the tracker's and the servo's participants, loopback
   // only. Samples carry the shared (system) clock: pipeline time + link_offset_s.
@@ -210,6 +218,7 @@ DemoResult RunDemo(const DemoOptions& o) {
       const TrackedVolume r =
           tracker.Process(d->volume, d->acquired_s, arrived, [&] { return clock.Now(); });
       if (r.published) arrivals.Add(r.sequence, arrived);
+      if (o.on_tracked) o.on_tracked(r, d->volume, d->acquired_s + clock.link_offset_s());
       if (r.error.empty()) {
         ++tracked_volumes;
         const tracking::CatheterDetection& det = r.detection;
@@ -293,7 +302,7 @@ DemoResult RunDemo(const DemoOptions& o) {
     while (em.next_sample_s() <= t) {
       const double t_sample = em.next_sample_s();
       const hw::EmSample r = em.Sample(tip_img);
-      rows.AddEm(r);
+      if (!o.external_em) rows.AddEm(r);
       if (r.valid && t_sample >= o.metrics_start_s) {
         const double t_pipeline = r.t_s - scene.em_options().clock_offset_s;
         em_sq += (em_to_image * r.position_mm - scene.DesiredTip(t_pipeline)).squaredNorm();
@@ -386,6 +395,7 @@ DemoResult RunDemo(const DemoOptions& o) {
               static_cast<unsigned long long>(rs.dropped),
               static_cast<unsigned long long>(rs.submitted), recorder->queue_capacity()));
   }
+  if (external_em.stop) external_em.stop();  // its last rows in before the flush
   if (writer) writer->Flush();
   run_guard.Keep();
   return result;

@@ -23,7 +23,17 @@
 #include "control/realtime.h"
 #include "hw/fault_injection.h"
 
+namespace echoservo::hw {
+class RunWriter;
+}
+
+namespace echoservo::imaging {
+class Volume;
+}
+
 namespace echoservo::live {
+
+struct TrackedVolume;
 
 struct DemoOptions {
   double duration_s = 20.0;   // (0, 3600]
@@ -66,6 +76,17 @@ struct DemoOptions {
   // provoke the deadline watchdog.
   std::vector<hw::InjectedFault> slow_reads;
   std::function<void(const std::string&)> log;  // progress lines; may be null
+  // A live EM stream (`--em-connect`, a PLUS server) writes em.csv instead of the simulated
+  // EM tracker, whose samples still give tip_to_target_rms_mm and em_samples. Called once
+  // the RUN writer exists (null without out_dir); returns the function that stops the
+  // stream, called before the writer goes (an exception included).
+  std::function<std::function<void()>(hw::RunWriter*)> external_em;
+  // Each volume the tracker processed: its result, the volume, and its acquisition time on
+  // the system clock (s since the Unix epoch: pipeline time + the pipeline clock's offset,
+  // measured once at the start). Called on the tracker's thread right after Process, so it
+  // must not block (`--igtl-serve`: DetectionServer::Publish). May be null.
+  std::function<void(const TrackedVolume&, const imaging::Volume&, double acquired_unix_s)>
+      on_tracked;
   // Throws std::invalid_argument naming the option.
   void Validate() const;
 };

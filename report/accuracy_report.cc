@@ -324,8 +324,13 @@ std::string AlignmentHtml(const AccuracyMetrics& m) {
   s += Row({"quantity", "value"}, "", true);
   s += Row(
       {"clock offset t<sub>image</sub> = t<sub>EM</sub> + offset (s)", Fix(a.em_time_offset_s, 4)});
-  s += Row({"search window (s)", Fix(a.offset_center_s, 3) + " &plusmn; " + Fix(a.max_offset_s, 3) +
-                                     ", step " + Fix(1000.0 * a.grid_step_s, 2) + " ms"});
+  if (a.fixed_offset) {
+    s += Row({"clock offset", "given, not searched: " + Esc(m.offset_source)});
+  } else {
+    s += Row({"search window (s)", Fix(a.offset_center_s, 3) + " &plusmn; " +
+                                       Fix(a.max_offset_s, 3) + ", step " +
+                                       Fix(1000.0 * a.grid_step_s, 2) + " ms"});
+  }
   s += Row({"registration residual RMS / max (mm)",
             Fix(a.residual_rms_mm, 3) + " / " + Fix(a.residual_max_mm, 3)});
   s += Row({"pairs (tracked tip, interpolated EM)", std::to_string(a.pairs)});
@@ -506,6 +511,8 @@ AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
   const PointSeries image_tip = FoundVolumes(run, &hw::TargetRecord::tip_mm);
   m.alignment = AlignEmToImage(em_points, image_tip, o.alignment);
   m.transform_source = m.alignment.fixed_transform ? o.transform_source : "estimated";
+  m.offset_source = m.alignment.fixed_offset ? o.offset_source : "estimated";
+  if (m.alignment.fixed_offset) m.tracker_lag_s = o.tracker_lag_s;
   // Every alignment, estimated or given, must show that the log belongs to this run before
   // a figure is given.
   m.checks = CheckAlignment(em_points, image_tip, m.alignment, o.checks);
@@ -629,6 +636,8 @@ std::string AccuracyJson(const AccuracyMetrics& m, const AccuracyReportOptions& 
         {"missing_in_gaps", m.dropped.missing_in_gaps},
         {"median_period_s", m.dropped.median_period_s}}},
       {"em_time_offset_s", m.alignment.em_time_offset_s},
+      {"em_time_offset_source", m.offset_source},
+      {"tracker_lag_s", std::isfinite(m.tracker_lag_s) ? Json(m.tracker_lag_s) : Json(nullptr)},
       {"registration_rms_mm", m.alignment.residual_rms_mm},
       {"registration_max_mm", m.alignment.residual_max_mm},
       {"registration_pairs", m.alignment.pairs},
@@ -671,6 +680,10 @@ std::string RenderAccuracyReport(const hw::RunRecord& run, const AccuracyMetrics
        std::to_string(m.error_mm.size()) + " EM samples over " + Fix(duration, 1) + " s"},
       {"Window", Esc(WindowText(m))},
       {"EM&rarr;image transform", Esc(m.transform_source)},
+      {"EM clock offset", Fix(m.alignment.em_time_offset_s, 4) + " s (" +
+                              Esc(m.alignment.fixed_offset ? "tracker lag " + m.offset_source
+                                                           : std::string("estimated")) +
+                              ")"},
       {"Generated", Esc(o.generated.empty() ? html::NowUtc() : o.generated)},
   };
   std::string page = html::PageStart("Accuracy report: " + Esc(o.run_path));

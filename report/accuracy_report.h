@@ -39,6 +39,11 @@ struct AccuracyOptions {
   std::string from_reason = "--from";  // why from_s, when it is finite
   // Where a given alignment.em_to_image came from ("--em-to-image", "run.json").
   std::string transform_source = "--em-to-image";
+  // Where a given alignment.fixed_offset_s came from, shown in the report, e.g.
+  // "--tracker-lag 0.034 s (given)" (report --tracker-lag; docs/report.md#tracker-lag).
+  std::string offset_source = "--tracker-lag";
+  // The tracker lag behind it (PLUS's sign: fixed_offset_s = −lag), NaN when none.
+  double tracker_lag_s = std::numeric_limits<double>::quiet_NaN();
   AlignmentCheckLimits checks;
   // Give the figures even when a plausibility check fails (warnings, forced = true).
   bool force = false;
@@ -92,6 +97,9 @@ struct AccuracyMetrics {
   double window_from_s = -std::numeric_limits<double>::infinity();
   std::string window_reason;
   std::string transform_source;  // "--em-to-image", "run.json" or "estimated"
+  // The clock offset: "estimated" (searched), or where the given tracker lag came from.
+  std::string offset_source;
+  double tracker_lag_s = std::numeric_limits<double>::quiet_NaN();  // the given lag, s
   std::vector<AlignmentCheck> checks;
   bool forced = false;                // a check failed and options.force gave the figures
   std::vector<std::string> warnings;  // the failed checks' messages

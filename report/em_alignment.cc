@@ -262,7 +262,7 @@ EmAlignment AlignEmToImage(const PointSeries& em, const PointSeries& image,
                            const EmAlignmentOptions& o) {
   if (!(o.max_offset_s >= 0.0) || !(o.grid_step_s >= 0.0) || !(o.max_gap_s >= 0.0) ||
       !(o.min_spread_mm > 0.0) || !(o.huber_mm >= 0.0) || !(o.max_scale_error > 0.0) ||
-      o.min_pairs < 3) {
+      o.min_pairs < 3 || (o.fixed_offset_s && !std::isfinite(*o.fixed_offset_s))) {
     throw std::invalid_argument(
         "EM-to-image alignment: options out of range (max_offset_s, grid_step_s, max_gap_s, "
         "huber_mm ≥ 0; min_spread_mm, max_scale_error > 0; min_pairs ≥ 3)");
@@ -297,14 +297,16 @@ EmAlignment AlignEmToImage(const PointSeries& em, const PointSeries& image,
   const double em_period = em.MedianPeriodS();
   const double max_gap = o.max_gap_s > 0.0 ? o.max_gap_s : kMaxGapPeriods * em_period;
   a.max_gap_s = max_gap;
-  a.offset_center_s =
-      std::isfinite(o.offset_center_s) ? o.offset_center_s : image.t_s.front() - em.t_s.front();
-  a.max_offset_s = o.max_offset_s;
-  const double window = 2.0 * o.max_offset_s;
+  a.fixed_offset = o.fixed_offset_s.has_value();
+  a.offset_center_s = a.fixed_offset                     ? *o.fixed_offset_s
+                      : std::isfinite(o.offset_center_s) ? o.offset_center_s
+                                                         : image.t_s.front() - em.t_s.front();
+  a.max_offset_s = a.fixed_offset ? 0.0 : o.max_offset_s;
+  const double window = 2.0 * a.max_offset_s;
   a.grid_step_s = o.grid_step_s > 0.0 ? o.grid_step_s
                                       : std::max(0.5 * std::min(em_period, image.MedianPeriodS()),
                                                  window / static_cast<double>(kMaxGridPoints));
-  const auto steps = static_cast<long>(std::floor(o.max_offset_s / a.grid_step_s));
+  const auto steps = static_cast<long>(std::floor(a.max_offset_s / a.grid_step_s));
 
   // Coarse grid: the closed-form pose (or the given one) at every offset.
   std::vector<std::size_t> counts;
@@ -322,8 +324,9 @@ EmAlignment AlignEmToImage(const PointSeries& em, const PointSeries& image,
   if (most < need) {
     Refuse("at most " + std::to_string(most) + " image tips pair with EM samples (at least " +
            std::to_string(need) + " are needed) for clock offsets in " + Num(a.offset_center_s, 3) +
-           " ± " + Num(o.max_offset_s, 3) +
-           " s: check that the EM log belongs to this run and the offset window");
+           " ± " + Num(a.max_offset_s, 3) +
+           " s: check that the EM log belongs to this run and the offset window" +
+           (a.fixed_offset ? " (the given tracker lag)" : ""));
   }
   std::size_t best = a.grid_rms_mm.size();
   const double floor_count =
@@ -359,8 +362,12 @@ EmAlignment AlignEmToImage(const PointSeries& em, const PointSeries& image,
     problem.SetParameterBlockConstant(rotation);
     problem.SetParameterBlockConstant(translation);
   }
-  problem.SetParameterLowerBound(offset, 0, a.offset_center_s - o.max_offset_s - a.grid_step_s);
-  problem.SetParameterUpperBound(offset, 0, a.offset_center_s + o.max_offset_s + a.grid_step_s);
+  if (a.fixed_offset) {
+    problem.SetParameterBlockConstant(offset);
+  } else {
+    problem.SetParameterLowerBound(offset, 0, a.offset_center_s - o.max_offset_s - a.grid_step_s);
+    problem.SetParameterUpperBound(offset, 0, a.offset_center_s + o.max_offset_s + a.grid_step_s);
+  }
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
   so.max_num_iterations = 100;
@@ -369,8 +376,10 @@ EmAlignment AlignEmToImage(const PointSeries& em, const PointSeries& image,
   so.num_threads = 1;
   so.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
-  a.iterations = static_cast<int>(summary.iterations.size());
+  if (!(a.fixed_transform && a.fixed_offset)) {  // else nothing is left to estimate
+    ceres::Solve(so, &problem, &summary);
+    a.iterations = static_cast<int>(summary.iterations.size());
+  }
 
   Eigen::Matrix3d r;
   ceres::AngleAxisToRotationMatrix(rotation, r.data());  // column-major, as Eigen

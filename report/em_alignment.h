@@ -53,6 +53,9 @@ struct EmAlignmentOptions {
   double huber_mm = 2.0;         // robust loss scale; 0: plain least squares
   double max_scale_error = 0.2;  // |similarity scale − 1| beyond this: a units error
   std::optional<Eigen::Isometry3d> em_to_image;  // known: estimate only the offset
+  // Known (e.g. from a temporal calibration, `report --tracker-lag`): the offset is not
+  // searched; the window is this value alone.
+  std::optional<double> fixed_offset_s;
 };
 
 struct EmAlignment {
@@ -69,6 +72,7 @@ struct EmAlignment {
   double grid_step_s = 0.0;
   double max_gap_s = 0.0;             // EM interpolation never bridges a longer gap
   bool fixed_transform = false;       // em_to_image was given
+  bool fixed_offset = false;          // fixed_offset_s was given (not searched)
   int iterations = 0;                 // Ceres
   std::vector<double> grid_offset_s;  // the coarse search, for a plot
   std::vector<double> grid_rms_mm;    // NaN where too few pairs

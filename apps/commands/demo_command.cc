@@ -5,7 +5,9 @@
 // "estimates_rejected_by" {"link", "non_finite", "range", "time", "confidence"},
 // "em_samples", "em_dropouts", "servo_cycles", "servo_overruns", "limit_faults",
 // "ekf_harmonics", "ekf_rate_hz", "run_dir", "realtime", "timing", "deadline"} (the last three
-// as in `servo --json` and RUN/timing.json: live/servo_cycle_clock.h ServoTimingJson).
+// as in `servo --json` and RUN/timing.json: live/servo_cycle_clock.h ServoTimingJson), and
+// "em_stream": the --em-connect client's counts (RUN/em_stream.json; null without it), and
+// "igtl_serve": the --igtl-serve detection server's counts (docs/slicer.md; null without it).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
@@ -15,6 +17,8 @@
 #include <optional>
 #include <string>
 
+#include "apps/commands/em_connect_flags.h"
+#include "apps/commands/igtl_serve_flags.h"
 #include "apps/commands/live_commands.h"
 #include "apps/commands/realtime_flags.h"
 #include "apps/commands/report_command.h"
@@ -31,6 +35,8 @@ struct DemoArgs {
   std::string out;
   bool json = false;
   bool baseline = false;
+  EmConnectFlags em;    // --em-connect: a PLUS server's EM stream writes em.csv
+  IgtlServeFlags igtl;  // --igtl-serve: the detections to OpenIGTLink viewers (Slicer)
 };
 
 void RunDemoCommand(const DemoArgs& a) {
@@ -40,7 +46,24 @@ void RunDemoCommand(const DemoArgs& a) {
   o.watchdog = ToWatchdogConfig(a.rt, 1e-3);  // the simulated catheter's 1 kHz servo
   o.slow_reads = ToSlowReads(a.rt);
   if (!a.json) o.log = [](const std::string& line) { std::cerr << "demo: " << line << "\n"; };
+  // --em-connect: the live EM stream replaces the simulated EM tracker in em.csv.
+  EmConnection em(a.em, "demo");
+  if (em.enabled()) {
+    o.external_em = [&em](hw::RunWriter* writer) {
+      em.Start(writer);
+      return std::function<void()>([&em] { em.Stop(); });
+    };
+  }
+  // --igtl-serve: each tracked volume to the OpenIGTLink viewers (docs/slicer.md), stamped
+  // with its acquisition time on the system clock (the pipeline clock's offset, see demo_run.h).
+  IgtlServe igtl(a.igtl, "demo");
+  if (igtl.enabled()) {
+    o.on_tracked = [&igtl](const live::TrackedVolume& t, const imaging::Volume& v,
+                           double acquired_unix_s) { igtl.OnTracked(t, v, acquired_unix_s); };
+  }
   const live::DemoResult r = live::RunDemo(o);
+  const nlohmann::json igtl_serve = nlohmann::json::parse(igtl.Finish());
+  const nlohmann::json em_stream = nlohmann::json::parse(em.Finish(a.out));
   // The baseline in the same process: the same run (seed, scene, catheter) with the tracker
   // publishing a zero-order hold of its newest measurement instead of the EKF's prediction.
   // The run's report, as `echoservo report RUN --from <metrics start>` writes it.
@@ -62,6 +85,8 @@ void RunDemoCommand(const DemoArgs& a) {
     b.zero_order_hold = true;
     b.out_dir.clear();
     b.save_volumes = false;
+    b.external_em = nullptr;
+    b.on_tracked = nullptr;
     if (o.log) o.log("baseline: the same run with a zero-order hold instead of the EKF");
     zoh = live::RunDemo(b);
   }
@@ -114,6 +139,8 @@ void RunDemoCommand(const DemoArgs& a) {
     const nlohmann::json timing = nlohmann::json::parse(r.timing_json);
     for (const char* key : {"realtime", "timing", "deadline"}) out[key] = timing[key];
     if (!report_error.empty()) out["report_error"] = report_error;
+    out["em_stream"] = em_stream;
+    out["igtl_serve"] = igtl_serve;
     if (report_rms_mm) {
       out["report"] = (fs::path(a.out) / "report.html").string();
       out["report_tip_to_target_rms_mm"] = *report_rms_mm;  // EM aligned by the report itself
@@ -217,6 +244,8 @@ void AddLiveCommands(CLI::App& app) {
                  "then run the same demo with a zero-order hold instead of the EKF (same process) "
                  "and report the ratio");
   AddRealtimeFlags(*demo, args->rt);
+  AddEmConnectFlags(*demo, args->em);
+  AddIgtlServeFlags(*demo, args->igtl);
   demo->add_flag("--json", args->json, "print the figures as JSON");
   demo->callback([args] { RunDemoCommand(*args); });
   AddTrackCommand(app);

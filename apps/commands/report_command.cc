@@ -4,12 +4,15 @@
 
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
+#include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
+#include <utility>
 
 #include "apps/output.h"
 #include "hw/io/run_record.h"
@@ -27,6 +30,7 @@ struct ReportFlags {
   std::string sensor;
   std::string out;
   std::string em_to_image;
+  std::string tracker_lag;  // s, or a `calibrate temporal --json` file
   std::optional<double> from_s;
   double max_offset_s = 2.0;
   double offset_center_s = std::numeric_limits<double>::quiet_NaN();
@@ -59,6 +63,44 @@ Eigen::Isometry3d ParseTransform(const std::string& text) {
   Eigen::Isometry3d t;
   t.matrix() = m;
   return t;
+}
+
+// --tracker-lag: a number of seconds, or the JSON a `calibrate temporal --json` printed
+// (its tracker_lag_s). Returns the lag and the words the report shows for its source.
+std::pair<double, std::string> ParseTrackerLag(const std::string& text) {
+  std::size_t used = 0;
+  double lag = std::numeric_limits<double>::quiet_NaN();
+  try {
+    lag = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used > 0 && used == text.size()) {
+    if (!std::isfinite(lag) || std::abs(lag) > 60.0)
+      throw std::invalid_argument("--tracker-lag " + text + ": not a lag in s within ±60");
+    return {lag, "--tracker-lag " + Fixed(lag, 4) + " s (given)"};
+  }
+  std::ifstream in(text);
+  if (!in) {
+    throw std::invalid_argument("--tracker-lag " + text +
+                                ": neither a number of seconds nor a readable JSON file (the "
+                                "output of `echoservo calibrate temporal --json`)");
+  }
+  const auto j = nlohmann::json::parse(in, nullptr, false);
+  if (!j.is_object() || !j.contains("tracker_lag_s") || !j["tracker_lag_s"].is_number() ||
+      !std::isfinite(j["tracker_lag_s"].get<double>()) ||
+      std::abs(j["tracker_lag_s"].get<double>()) > 60.0) {
+    throw std::invalid_argument("--tracker-lag " + text +
+                                ": not the JSON of `echoservo calibrate temporal --json` (no "
+                                "finite number 'tracker_lag_s' within ±60 s)");
+  }
+  lag = j["tracker_lag_s"].get<double>();
+  std::string source = "--tracker-lag " + text + ": " + Fixed(lag, 4) + " s (calibrate temporal";
+  if (j.contains("correlation") && j["correlation"].is_number())
+    source += ", correlation " + Fixed(j["correlation"].get<double>(), 4);
+  if (j.contains("video_frames_used") && j["video_frames_used"].is_number())
+    source += ", " + std::to_string(j["video_frames_used"].get<long long>()) + " video frames";
+  return {lag, source + ")"};
 }
 
 struct Produced {
@@ -125,6 +167,25 @@ Produced Produce(const ReportFlags& f) {
       ao.transform_source = "run.json";
     }
   }
+  if (!f.tracker_lag.empty()) {
+    if (std::isfinite(f.offset_center_s))
+      throw std::invalid_argument(
+          "--tracker-lag and --offset-center: give one (a given lag is not searched)");
+    // A lag relates two stamps of one clock: the run's times must be on the EM tracker's
+    // (system) clock, not the demo's pipeline clock (s since the run's start).
+    const auto meta = nlohmann::json::parse(run.info.metadata_json, nullptr, false);
+    if (meta.is_object() && meta.value("time_base", "") == "pipeline")
+      throw std::invalid_argument(
+          "--tracker-lag: " + f.run +
+          "/run.json says time_base 'pipeline': the run's times count from its start, not on "
+          "the EM tracker's clock, so a lag alone does not give the clock offset; leave it "
+          "to the report's search (drop --tracker-lag)");
+    const auto [lag, source] = ParseTrackerLag(f.tracker_lag);
+    // PLUS's sign: the EM (tracker) timestamps are late by the lag, t_image = t_EM − lag.
+    ao.alignment.fixed_offset_s = -lag;
+    ao.tracker_lag_s = lag;
+    ao.offset_source = source;
+  }
   ao.phase_bins = f.phase_bins;
   if (f.from_s) {
     ao.from_s = *f.from_s;
@@ -159,8 +220,9 @@ void RunReport(const ReportFlags& f) {
             << " EM samples against " << m.target_source << " (seed "
             << Fixed(ro.reference_rms_mm, 2) << " mm)\n"
             << "EM: " << em.samples.size() << " samples, " << em.dropouts()
-            << " drop-outs; clock offset " << Fixed(m.alignment.em_time_offset_s, 4)
-            << " s, registration RMS " << Fixed(m.alignment.residual_rms_mm, 3) << " mm over "
+            << " drop-outs; clock offset " << Fixed(m.alignment.em_time_offset_s, 4) << " s ("
+            << (m.alignment.fixed_offset ? "tracker lag " + m.offset_source : "estimated")
+            << "), registration RMS " << Fixed(m.alignment.residual_rms_mm, 3) << " mm over "
             << m.alignment.pairs << " pairs; EM→image transform " << m.transform_source << "\n"
             << "scored window: " << report::WindowText(m) << "\n";
   if (m.latency.count > 0) {
@@ -219,6 +281,9 @@ void AddReportCommand(CLI::App& app) {
   cmd->add_option("--em-to-image", f->em_to_image,
                   "Known EM→image transform, 12 or 16 comma-separated numbers, row-major, mm: "
                   "only the clock offset is estimated");
+  cmd->add_option("--tracker-lag", f->tracker_lag,
+                  "Known tracker lag, s (PLUS's sign), or the JSON file of `calibrate temporal "
+                  "--json`: the EM clock offset is not searched but set to -lag");
   cmd->add_option("--phase-bins", f->phase_bins, "Heartbeat phase bins (default 10)");
   cmd->add_flag("--json", f->json, "Print the figures as JSON");
   cmd->add_flag("--force", f->force,

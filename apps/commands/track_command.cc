@@ -18,6 +18,11 @@
 // --connect reports every failed attempt and lost connection on stderr (address, errno
 // text), retries with back-off (0.25 s doubling to 4 s), gives up when no volume came
 // within --connect-timeout S, and exits with status 1 when it never received a volume.
+// --em-connect HOST:PORT [--em-tool NAME] records a PLUS server's EM stream into RUN/em.csv
+// (apps/commands/em_connect_flags.h); --json's em_stream has its counts.
+// --igtl-serve PORT [--igtl-volumes] [--igtl-bind ADDR] serves each processed volume's
+// detection to OpenIGTLink viewers such as 3D Slicer (apps/commands/igtl_serve_flags.h,
+// docs/slicer.md); --json's igtl_serve has the server's counts.
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
@@ -28,6 +33,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "apps/commands/em_connect_flags.h"
+#include "apps/commands/igtl_serve_flags.h"
 #include "apps/commands/link_flags.h"
 #include "apps/commands/live_commands.h"
 #include "hw/io/durable_file.h"
@@ -72,6 +79,8 @@ constexpr std::size_t kRecordQueueVolumes = 16;
 
 struct TrackArgs {
   LinkFlags link;
+  EmConnectFlags em;    // --em-connect: a PLUS server's EM stream into RUN/em.csv
+  IgtlServeFlags igtl;  // --igtl-serve: the detections to OpenIGTLink viewers (Slicer)
   bool sim = false;
   std::string connect;
   std::string replay;
@@ -102,7 +111,9 @@ hw::RunInfo ReplayInfo(const fs::path& file) {
     info.standoff_mm = recorded.info.standoff_mm;
     const auto m = nlohmann::json::parse(recorded.info.metadata_json, nullptr, false);
     if (m.is_object() && m.contains("em_to_image")) meta["em_to_image"] = m["em_to_image"];
+    if (m.is_object() && m.contains("time_base")) meta["time_base"] = m["time_base"];
   }
+  if (!meta.contains("time_base")) meta["time_base"] = "recording";
   info.metadata_json = meta.dump();
   return info;
 }
@@ -119,6 +130,14 @@ void RunTrack(const TrackArgs& a) {
     throw std::invalid_argument("track --save-volumes: needs --out RUN");
   if (a.save_volumes && replay)
     throw std::invalid_argument("track --save-volumes: a replay is recorded already");
+  if (!a.em.connect.empty() && replay)
+    throw std::invalid_argument("track --em-connect: a replay is offline (use its RUN's em.csv)");
+  EmConnection em(a.em, "track");
+  // --igtl-serve: each processed volume to the OpenIGTLink viewers (docs/slicer.md), stamped
+  // with its acquisition time: --sim converts the pipeline clock with its offset to the system
+  // clock (measured once at the start), --connect passes the scanner's stamp, --replay the
+  // recording's.
+  IgtlServe igtl(a.igtl, "track");
 
   live::TrackerNodeOptions to;
   to.ekf.harmonics = a.harmonics;
@@ -134,12 +153,23 @@ void RunTrack(const TrackArgs& a) {
       info = ReplayInfo(a.replay);
     } else {
       info.heart_rate_hz = a.sim ? std::optional<double>(a.heart_rate_bpm / 60.0) : std::nullopt;
-      info.metadata_json =
-          nlohmann::json{{"source", a.sim ? "echoservo track --sim" : "echoservo track --connect"}}
-              .dump();
+      // The clock of the run's times (docs/report.md#the-run-directory): --sim's pipeline
+      // clock (s since the run's start), or --connect's system clock (s since the Unix epoch:
+      // the scanner's stamps on a shared clock, else the arrival times).
+      info.metadata_json = nlohmann::json{
+          {"source", a.sim ? "echoservo track --sim" : "echoservo track --connect"},
+          {"time_base",
+           a.sim ? "pipeline"
+                 : "unix"}}.dump();
     }
     writer = std::make_unique<hw::RunWriter>(a.out, info);
   }
+  // The EM stream writes to `writer`: stopped before the writer goes, however this is left.
+  struct StopEm {
+    EmConnection& em;
+    ~StopEm() { em.Stop(); }
+  } stop_em{em};
+  em.Start(writer.get());
   // The received volumes, on the recorder's thread: the tracker never waits for the disk.
   std::unique_ptr<imaging::AsyncSequenceWriter> recorder;
   if (a.save_volumes)
@@ -179,7 +209,9 @@ void RunTrack(const TrackArgs& a) {
         continue;
       }
       last = t;
-      report_error(node->Process(f->volume, t, t, [t] { return t; }));
+      const live::TrackedVolume r = node->Process(f->volume, t, t, [t] { return t; });
+      report_error(r);
+      igtl.OnTracked(r, f->volume, t);
     }
   } else if (a.sim) {
     const live::PipelineClock clock(0.2);
@@ -201,8 +233,10 @@ void RunTrack(const TrackArgs& a) {
         continue;
       }
       const double arrived = clock.Now();
-      report_error(
-          node->Process(d->volume, d->acquired_s, arrived, [&clock] { return clock.Now(); }));
+      const live::TrackedVolume r =
+          node->Process(d->volume, d->acquired_s, arrived, [&clock] { return clock.Now(); });
+      report_error(r);
+      igtl.OnTracked(r, d->volume, d->acquired_s + clock.link_offset_s());
       record(std::move(d->volume));
     }
     scanner.Stop();
@@ -260,8 +294,10 @@ void RunTrack(const TrackArgs& a) {
       if (!f) continue;
       ++received;
       const double acquired = f->latency_ms ? f->frame.volume.timestamp_s() : f->arrival_s;
-      report_error(
-          node->Process(f->frame.volume, acquired, f->arrival_s, [] { return link::NowS(); }));
+      const live::TrackedVolume r =
+          node->Process(f->frame.volume, acquired, f->arrival_s, [] { return link::NowS(); });
+      report_error(r);
+      igtl.OnTracked(r, f->frame.volume, acquired);
       record(std::move(f->frame.volume));
     }
     client.Stop();
@@ -296,6 +332,8 @@ void RunTrack(const TrackArgs& a) {
                 (gave_up ? "; giving up" : "");
     }
   }
+  const nlohmann::json em_stream = nlohmann::json::parse(em.Finish(a.out));
+  const nlohmann::json igtl_serve = nlohmann::json::parse(igtl.Finish());
   if (writer) writer->Flush();
   imaging::AsyncRecorderStats rs;
   if (recorder) {  // what is queued is written, then synced
@@ -323,6 +361,8 @@ void RunTrack(const TrackArgs& a) {
                                 {"dropped", dropped},
                                 {"missed_acquisitions", missed},
                                 {"ingest", ingest},
+                                {"em_stream", em_stream},
+                                {"igtl_serve", igtl_serve},
                                 {"ekf_harmonics", node->ekf().harmonics()},
                                 {"ekf_rate_hz", node->ekf().rate_hz()},
                                 {"heartbeat", HeartbeatJson(*node)},
@@ -384,6 +424,8 @@ void AddTrackCommand(CLI::App& app) {
       ->check(CLI::Range(0.1, 20.0));
   cmd->add_option("--seed", a->seed, "--sim: simulation seed");
   AddLinkFlags(*cmd, a->link);
+  AddEmConnectFlags(*cmd, a->em);
+  AddIgtlServeFlags(*cmd, a->igtl);
   cmd->add_flag("--json", a->json, "print the summary as JSON");
   cmd->callback([a] { RunTrack(*a); });
 }

@@ -301,6 +301,35 @@ void EncodeImage(const Volume& volume, const EncodeOptions& options,
   std::memcpy(out.data(), &h, kHeaderBytes);
 }
 
+void WriteMessageHeader(const std::string& type, const std::string& device_name, double timestamp_s,
+                        std::span<const std::uint8_t> body, std::uint8_t* out) {
+  const auto check = [](const std::string& name, std::size_t max, const char* what) {
+    if (name.size() > max) {
+      throw std::invalid_argument("OpenIGTLink " + std::string(what) + " '" + name +
+                                  "' is longer than " + std::to_string(max) + " bytes");
+    }
+    for (const char ch : name) {
+      const auto c = static_cast<unsigned char>(ch);
+      if (c < 0x20 || c > 0x7E) {
+        throw std::invalid_argument("OpenIGTLink " + std::string(what) + " '" + name +
+                                    "' has a byte that is not printable ASCII");
+      }
+    }
+  };
+  check(type, IGTL_HEADER_TYPE_SIZE, "message type");
+  check(device_name, IGTL_HEADER_NAME_SIZE, "device name");
+  if (type.empty()) throw std::invalid_argument("OpenIGTLink message type is empty");
+  igtl_header h{};
+  h.version = IGTL_HEADER_VERSION;
+  std::memcpy(h.name, type.data(), type.size());
+  std::memcpy(h.device_name, device_name.data(), device_name.size());
+  h.timestamp = SecondsToIgtlTimestamp(timestamp_s);
+  h.body_size = body.size();
+  h.crc = Crc64Ecma182(body);
+  igtl_header_convert_byte_order(&h);
+  std::memcpy(out, &h, kHeaderBytes);
+}
+
 std::vector<std::uint8_t> EncodeImage(const Volume& volume, const EncodeOptions& options) {
   std::vector<std::uint8_t> out;
   EncodeImage(volume, options, out);

@@ -129,6 +129,13 @@ std::vector<std::uint8_t> EncodeImage(const Volume& volume, const EncodeOptions&
 std::vector<std::uint8_t> EncodeImageLibIgtl(const Volume& volume,
                                              const EncodeOptions& options = {});
 
+// Writes the 58-byte header of a message of `type` (≤ 12 bytes) from `device_name` (≤ 20
+// bytes of printable ASCII) at `timestamp_s` whose body is `body` (size and CRC-64 taken from
+// it) into out[0, 58). Throws std::invalid_argument for a name too long or not printable, or a
+// timestamp outside [0, 2³²) s. Shared by the tracking message encoders (tracking_messages.h).
+void WriteMessageHeader(const std::string& type, const std::string& device_name, double timestamp_s,
+                        std::span<const std::uint8_t> body, std::uint8_t* out);
+
 // The volume's wire matrix (12 floats, see above) in `coordinate_system`.
 std::array<float, 12> ImageMatrix(const VolumeGeometry& geometry,
                                   CoordinateSystem coordinate_system);

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "imaging/igtl/client_connection.h"
 #include "imaging/igtl/crc64.h"
-#include "imaging/igtl/tcp.h"
 
 namespace echoservo::imaging::openigtlink {
 namespace {
@@ -16,10 +16,6 @@ using Steady = std::chrono::steady_clock;
 double MsSince(Steady::time_point t) {
   return std::chrono::duration<double, std::milli>(Steady::now() - t).count();
 }
-
-enum class ReadStatus { kOk, kClosedClean, kTruncated, kStalled, kStopped, kError };
-
-constexpr int kPollMs = 50;
 
 }  // namespace
 
@@ -132,156 +128,75 @@ void IngestClient::Accept(IngestedFrame frame) {
 }
 
 void IngestClient::Run() {
-  double backoff = options_.reconnect_initial_s;
-  int failures = 0;
-  auto wait = [this](double s) {
-    std::unique_lock lock(mutex_);
-    cv_.wait_for(lock, std::chrono::duration<double>(s), [this] { return stop_.load(); });
+  ReconnectHooks hooks;
+  hooks.connect_failed = [this](const std::string& error) {
+    std::lock_guard lock(mutex_);
+    ++stats_.connect_failures;
+    stats_.last_connect_error = error;
   };
-  auto report = [this](ConnectionEvent e) {
-    if (!options_.on_event) return;
-    {
-      std::lock_guard lock(mutex_);
-      e.frames = stats_.frames;
-    }
-    options_.on_event(e);
+  hooks.connected = [this] {
+    std::lock_guard lock(mutex_);
+    ++stats_.connections;
   };
-  while (!stop_) {
-    std::string error;
-    int error_number = 0;
-    tcp::Fd fd = tcp::Connect(options_.host, options_.port, options_.connect_timeout_ms, error,
-                              error_number);
-    if (!fd.valid()) {
-      if (stop_) break;
-      ++failures;
-      {
-        std::lock_guard lock(mutex_);
-        ++stats_.connect_failures;
-        stats_.last_connect_error = error;
-      }
-      const bool give_up =
-          options_.max_connect_failures >= 0 && failures > options_.max_connect_failures;
-      ConnectionEvent e;
-      e.kind = ConnectionEvent::Kind::kConnectFailed;
-      e.attempt = failures;
-      e.error = error;
-      e.error_number = error_number;
-      e.retry_in_s = give_up ? 0.0 : backoff;
-      report(e);
-      if (give_up) {
-        report({ConnectionEvent::Kind::kGaveUp, failures, error, error_number, 0.0, 0});
-        break;
-      }
-      wait(backoff);
-      backoff = std::min(2 * backoff, options_.reconnect_max_s);
-      continue;
-    }
-    report({ConnectionEvent::Kind::kConnected, failures + 1, "", 0, 0.0, 0});
-    failures = 0;
-    std::int64_t frames_before;
-    {
-      std::lock_guard lock(mutex_);
-      ++stats_.connections;
-      frames_before = stats_.frames + stats_.skipped;
-    }
-    const std::string why = Session(fd.get());
-    fd.reset();
-    {
-      std::lock_guard lock(mutex_);
-      if (stats_.frames + stats_.skipped > frames_before) backoff = options_.reconnect_initial_s;
-    }
-    if (stop_) break;
-    report({ConnectionEvent::Kind::kDisconnected, 0, why, 0, backoff, 0});
-    wait(backoff);
-    backoff = std::min(2 * backoff, options_.reconnect_max_s);
+  hooks.session = [this](int fd) { return Session(fd); };
+  hooks.progress = [this] {
+    std::lock_guard lock(mutex_);
+    return stats_.frames + stats_.skipped;
+  };
+  hooks.frames = [this] {
+    std::lock_guard lock(mutex_);
+    return stats_.frames;
+  };
+  if (options_.on_event) {  // called in place, not copied: its state stays the caller's
+    hooks.on_event = [this](const ConnectionEvent& e) { options_.on_event(e); };
   }
+  hooks.wait = [this](double s) { WaitUnlessStopped(mutex_, cv_, stop_, s); };
+  RunReconnectLoop(
+      {options_.host, options_.port, options_.connect_timeout_ms, options_.reconnect_initial_s,
+       options_.reconnect_max_s, options_.max_connect_failures},
+      stop_, hooks);
   ended_ = true;
   cv_.notify_all();
 }
 
 std::string IngestClient::Session(int fd) {
-  // Reads n bytes, polling so that Stop() is honoured; `started` says a message is
-  // already under way (so a close is a truncation and silence a stall).
-  auto read = [&](std::uint8_t* p, std::size_t n, bool started) {
-    std::size_t total = 0;
-    auto last_progress = Steady::now();
-    while (total < n) {
-      if (stop_) return ReadStatus::kStopped;
-      std::size_t got = 0;
-      const tcp::IoResult r = tcp::ReadExact(fd, p + total, n - total, kPollMs, got);
-      total += got;
-      if (got > 0) last_progress = Steady::now();
-      if (r == tcp::IoResult::kOk) break;
-      const bool mid = started || total > 0;
-      if (r == tcp::IoResult::kTimeout) {
-        if (mid && MsSince(last_progress) > options_.stall_timeout_ms) return ReadStatus::kStalled;
-        continue;
-      }
-      if (r == tcp::IoResult::kClosed)
-        return mid ? ReadStatus::kTruncated : ReadStatus::kClosedClean;
-      return ReadStatus::kError;
-    }
-    std::lock_guard lock(mutex_);
-    stats_.bytes += static_cast<std::int64_t>(n);
-    return ReadStatus::kOk;
-  };
-  std::string why = "stopped";  // why the session ended
-  // Maps a failed read to its rejection; true when the session must end.
-  auto failed = [&](ReadStatus s) {
-    switch (s) {
-      case ReadStatus::kOk:
-        return false;
-      case ReadStatus::kClosedClean:
-        why = "closed by the server";
-        break;
-      case ReadStatus::kTruncated:
-        Reject("truncated_message");
-        why = "closed by the server in the middle of a message";
-        break;
-      case ReadStatus::kStalled:
-        Reject("stalled");
-        why = "no data for " + std::to_string(options_.stall_timeout_ms) +
-              " ms in the middle of a message";
-        break;
-      case ReadStatus::kError:
-        Reject("socket_error");
-        why = "socket error";
-        break;
-      default:
-        break;
-    }
-    return true;
-  };
+  // Reads poll so that Stop() is honoured (client_connection.h); a failed one is counted
+  // as a rejection and ends the session (reader.why() says why).
+  SessionReader reader(
+      fd, stop_, options_.stall_timeout_ms,
+      [this](std::size_t n) {
+        std::lock_guard lock(mutex_);
+        stats_.bytes += static_cast<std::int64_t>(n);
+      },
+      [this](const std::string& reason) { Reject(reason); });
   std::vector<std::uint8_t> scratch(64 << 10);
   // Reads and discards n bytes, folding them into *crc when given.
   auto discard = [&](std::uint64_t n, std::uint64_t* crc) {
     while (n > 0) {
       const std::size_t chunk =
           static_cast<std::size_t>(std::min<std::uint64_t>(n, scratch.size()));
-      const ReadStatus s = read(scratch.data(), chunk, true);
-      if (s != ReadStatus::kOk) return s;
+      if (!reader.Read(scratch.data(), chunk, true)) return false;
       if (crc) *crc = Crc64Ecma182({scratch.data(), chunk}, *crc);
       n -= chunk;
     }
-    return ReadStatus::kOk;
+    return true;
   };
 
   const DecodeLimits& limits = options_.limits;
   while (!stop_) {
     std::uint8_t header_bytes[kHeaderBytes];
-    if (failed(read(header_bytes, kHeaderBytes, false))) return why;
+    if (!reader.Read(header_bytes, kHeaderBytes, false)) return reader.why();
     const auto t_header = Steady::now();
     MessageHeader header;
     try {
       header = ParseHeader(header_bytes, limits);
     } catch (const MessageError& e) {
       Reject(e.reason());  // framing can no longer be trusted: reconnect
-      why = std::string("bad message header (") + e.reason() + ")";
-      return why;
+      return std::string("bad message header (") + e.reason() + ")";
     }
     if (header.type != "IMAGE") {
       std::uint64_t crc = 0;
-      if (failed(discard(header.body_size, &crc))) return why;
+      if (!discard(header.body_size, &crc)) return reader.why();
       if (limits.verify_crc && crc != header.crc) {
         Reject("bad_crc");
       } else {
@@ -294,18 +209,18 @@ std::string IngestClient::Session(int fd) {
     std::uint8_t image_bytes[kImageHeaderBytes];
     const auto image_size =
         static_cast<std::size_t>(std::min<std::uint64_t>(header.body_size, kImageHeaderBytes));
-    if (failed(read(image_bytes, image_size, true))) return why;
+    if (!reader.Read(image_bytes, image_size, true)) return reader.why();
     ImageHeader image;
     try {
       image = ParseImageHeader(header, {image_bytes, image_size}, limits);
     } catch (const MessageError& e) {
       // The header's body_size is within limits, so the stream stays in step: skip it.
-      if (failed(discard(header.body_size - image_size, nullptr))) return why;
+      if (!discard(header.body_size - image_size, nullptr)) return reader.why();
       Reject(e.reason());
       continue;
     }
     Volume volume = MakeVolume(header, image);
-    if (failed(read(volume.voxels().data(), image.voxel_bytes, true))) return why;
+    if (!reader.Read(volume.voxels().data(), image.voxel_bytes, true)) return reader.why();
     if (limits.verify_crc) {
       std::uint64_t crc = Crc64Ecma182({image_bytes, kImageHeaderBytes});
       crc = Crc64Ecma182(volume.voxels(), crc);
@@ -325,7 +240,7 @@ std::string IngestClient::Session(int fd) {
     if (shared) f.latency_ms = latency_s * 1e3;
     Accept(std::move(f));
   }
-  return why;
+  return reader.why();
 }
 
 }  // namespace echoservo::imaging::openigtlink

@@ -5,12 +5,15 @@
 // (ParseImageHeader, before anything is allocated), then the whole message (DecodeMessage);
 // a bad_header or oversize body ends the stream, other rejections skip the message. The whole
 // input is also decoded as one message with the CRC checked, as a client with default
-// limits does. Only MessageError may escape the codec.
+// limits does. Each framed message also goes through the tracking decoders the EM stream
+// client uses (imaging/igtl/tracking_messages.h: TRANSFORM, TDATA, POINT, STATUS and the
+// version-2 metadata), whatever its type says. Only MessageError may escape the codec.
 #include <cstddef>
 #include <cstdint>
 #include <span>
 
 #include "imaging/igtl/image_message.h"
+#include "imaging/igtl/tracking_messages.h"
 
 namespace igtl = echoservo::imaging::openigtlink;
 
@@ -29,6 +32,42 @@ void CheckVolume(const igtl::DecodedMessage& m) {
   (void)v.Sample(v.IndexToPhysical((d.cast<double>() - Eigen::Vector3d::Ones()) / 2));
 }
 
+// The tracking decoders on one framed body; decoded values must be what they promise.
+void DecodeTracking(const igtl::MessageHeader& header, std::span<const std::uint8_t> body) {
+  auto check_rigid = [](const Eigen::Isometry3d& t) {
+    const Eigen::Matrix3d r = t.linear();
+    if (!t.matrix().allFinite()) __builtin_trap();
+    if ((r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-5)
+      __builtin_trap();
+  };
+  auto as = [&](const char* type) {
+    igtl::MessageHeader h = header;
+    h.type = type;  // also decode bodies as the other types: more paths per input
+    return h;
+  };
+  try {
+    check_rigid(igtl::DecodeTransform(as("TRANSFORM"), body).transform);
+  } catch (const igtl::MessageError&) {
+  }
+  try {
+    for (const auto& e : igtl::DecodeTrackingData(as("TDATA"), body)) check_rigid(e.transform);
+  } catch (const igtl::MessageError&) {
+  }
+  try {
+    for (const auto& p : igtl::DecodePoints(as("POINT"), body))
+      if (!p.position_mm.allFinite() || !(p.radius_mm >= 0)) __builtin_trap();
+  } catch (const igtl::MessageError&) {
+  }
+  try {
+    if (igtl::DecodeStatus(as("STATUS"), body).code > 19) __builtin_trap();
+  } catch (const igtl::MessageError&) {
+  }
+  try {
+    (void)igtl::DecodeMetadata(header, body);
+  } catch (const igtl::MessageError&) {
+  }
+}
+
 void ReadStream(std::span<const std::uint8_t> bytes, const igtl::DecodeLimits& limits) {
   while (bytes.size() >= igtl::kHeaderBytes) {
     igtl::MessageHeader header;
@@ -43,6 +82,7 @@ void ReadStream(std::span<const std::uint8_t> bytes, const igtl::DecodeLimits& l
       return;
     }
     const auto message = bytes.first(igtl::kHeaderBytes + header.body_size);
+    DecodeTracking(header, message.subspan(igtl::kHeaderBytes));
     try {
       if (header.type == "IMAGE" && header.body_size >= igtl::kImageHeaderBytes) {
         const auto image = igtl::ParseImageHeader(

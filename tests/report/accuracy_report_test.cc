@@ -355,5 +355,45 @@ TEST(AccuracyReport, RejectsBadOptions) {
                  "phase_bins");
 }
 
+// report --tracker-lag: a given lag (PLUS's sign, t_image = t_EM − lag) is used as the clock
+// offset, not searched; the report says which lag and where it came from.
+TEST(AccuracyReport, AGivenTrackerLagIsUsedNotSearched) {
+  SyntheticRun s;
+  s.duration_s = 10.0;
+  const TempDir dir("accuracy_tracker_lag");
+  testing::WriteSyntheticRun(s, dir.path());
+  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  const hw::EmLog em = hw::ReadSimEmLog(run.EmPath(), {});
+  const double d = s.tip_offset_mm.norm();
+  report::AccuracyOptions o;
+  o.alignment.fixed_offset_s = s.em_clock_offset_s;  // the true lag is −em_clock_offset_s
+  o.tracker_lag_s = -s.em_clock_offset_s;
+  o.offset_source = "--tracker-lag given";
+  const report::AccuracyMetrics m = report::ComputeAccuracy(run, em, o);
+  EXPECT_TRUE(m.alignment.fixed_offset);
+  EXPECT_DOUBLE_EQ(m.alignment.em_time_offset_s, s.em_clock_offset_s);  // exactly, not refined
+  EXPECT_EQ(m.alignment.grid_offset_s.size(), 1u);
+  EXPECT_NEAR(m.rms_mm, d, InterpolationBoundMm(s, s.truth_rate_hz));
+  report::AccuracyReportOptions ro;
+  ro.run_path = dir.str();
+  const auto j = nlohmann::json::parse(report::AccuracyJson(m, ro));
+  EXPECT_EQ(j["em_time_offset_source"], "--tracker-lag given");
+  EXPECT_DOUBLE_EQ(j["tracker_lag_s"].get<double>(), -s.em_clock_offset_s);
+  ExpectContains(report::RenderAccuracyReport(run, m, ro), "--tracker-lag given");
+  // A lag 40 ms off is kept as given (the estimate would have found the true offset): the
+  // tip moves up to v_max · 40 ms against the target, so the error grows.
+  o.alignment.fixed_offset_s = s.em_clock_offset_s + 0.04;
+  o.force = true;
+  const report::AccuracyMetrics off = report::ComputeAccuracy(run, em, o);
+  EXPECT_DOUBLE_EQ(off.alignment.em_time_offset_s, s.em_clock_offset_s + 0.04);
+  EXPECT_GT(off.rms_mm, m.rms_mm + 0.1);
+  // Without a lag the offset is estimated, and the JSON says so.
+  const report::AccuracyMetrics estimated = report::ComputeAccuracy(run, em);
+  EXPECT_FALSE(estimated.alignment.fixed_offset);
+  EXPECT_EQ(estimated.offset_source, "estimated");
+  EXPECT_TRUE(
+      nlohmann::json::parse(report::AccuracyJson(estimated, ro))["tracker_lag_s"].is_null());
+}
+
 }  // namespace
 }  // namespace echoservo
