@@ -63,7 +63,7 @@ struct TrackingDecodeLimits {
 struct TrackedTransform {
   std::string name;  // TRANSFORM: the header's device name; TDATA: the element's name
   Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();  // mm
-  std::uint8_t tdata_type = 0;  // TDATA: 1 tracker, 2 6D, 3 3D, 4 5D; 0 for TRANSFORM
+  std::uint8_t tdata_type = 0;   // TDATA: 1 tracker, 2 6D, 3 3D, 4 5D; 0 for TRANSFORM
   bool orthonormalized = false;  // the rotation was re-orthonormalised on decoding
 };
 
@@ -115,8 +115,7 @@ TrackedTransform DecodeTransform(const MessageHeader& header, std::span<const st
 std::vector<TrackedTransform> DecodeTrackingData(const MessageHeader& header,
                                                  std::span<const std::uint8_t> body,
                                                  const TrackingDecodeLimits& limits = {});
-std::vector<IgtlPoint> DecodePoints(const MessageHeader& header,
-                                    std::span<const std::uint8_t> body,
+std::vector<IgtlPoint> DecodePoints(const MessageHeader& header, std::span<const std::uint8_t> body,
                                     const TrackingDecodeLimits& limits = {});
 IgtlStatus DecodeStatus(const MessageHeader& header, std::span<const std::uint8_t> body);
 
