@@ -170,6 +170,19 @@ EmStreamOptions Options(int port, const std::string& tool, Recorder& rec) {
   return o;
 }
 
+// A PLUS-like server with one EM client connected to it (started), recording what it
+// accepts; `peer` is the server's end of the connection.
+struct Connected {
+  explicit Connected(const std::string& tool) : client(Options(server.port(), tool, rec)) {
+    client.Start();
+    peer = server.Accept();
+  }
+  PlusLikeServer server;
+  Recorder rec;
+  EmStreamClient client;
+  igtl::ClientSocket::Pointer peer;
+};
+
 template <typename F>
 bool WaitUntil(F done, std::chrono::milliseconds limit = 5000ms) {
   const auto end = std::chrono::steady_clock::now() + limit;
@@ -198,12 +211,11 @@ void ExpectExactly(Recorder& rec, int first, int count, double period_s) {
 TEST(EmStream, PlusLikeStreamAt40HzArrivesOnceInOrderAndResendsAreSkipped) {
   ECHOSERVO_RELEASE_SUITE_ONLY(
       "1 s of real-time pacing; the same client paths run unpaced in the other EmStream tests");
-  PlusLikeServer server;
-  Recorder rec;
-  EmStreamClient client(Options(server.port(), "CatheterTipToTracker", rec));
-  client.Start();
-  auto c = server.Accept();
-  ASSERT_TRUE(c.IsNotNull());
+  Connected link("CatheterTipToTracker");
+  ASSERT_TRUE(link.peer.IsNotNull());
+  auto& c = link.peer;
+  auto& rec = link.rec;
+  auto& client = link.client;
   constexpr int kSamples = 40;  // 1 s at 40 Hz, paced like a tracker
   constexpr double kPeriod = 1.0 / 40;
   const auto start = std::chrono::steady_clock::now();
@@ -235,12 +247,11 @@ TEST(EmStream, PlusLikeStreamAt40HzArrivesOnceInOrderAndResendsAreSkipped) {
 }
 
 TEST(EmStream, TdataElementsAreToolsAndSeveralToolsWithoutEmToolAreAnError) {
-  PlusLikeServer server;
-  Recorder rec;
-  EmStreamClient client(Options(server.port(), "", rec));
-  client.Start();
-  auto c = server.Accept();
-  ASSERT_TRUE(c.IsNotNull());
+  Connected link("");
+  ASSERT_TRUE(link.peer.IsNotNull());
+  auto& c = link.peer;
+  auto& rec = link.rec;
+  auto& client = link.client;
   for (int n = 0; n < 10; ++n) Send(c, Tdata(kT0 + 0.025 * n, {"StylusToTracker"}, PoseAt(n)));
   ASSERT_TRUE(WaitUntil([&] { return rec.size() >= 10; }));
   // A second tool appears: which one to record is ambiguous, so recording stops.
@@ -286,12 +297,11 @@ TEST(EmStream, DisconnectAndReconnectAreCountedAndLoseNothing) {
 }
 
 TEST(EmStream, BadMessagesAreRejectedByReasonAndDeviceWhileTheStreamGoesOn) {
-  PlusLikeServer server;
-  Recorder rec;
-  EmStreamClient client(Options(server.port(), "CatheterTipToTracker", rec));
-  client.Start();
-  auto c = server.Accept();
-  ASSERT_TRUE(c.IsNotNull());
+  Connected link("CatheterTipToTracker");
+  ASSERT_TRUE(link.peer.IsNotNull());
+  auto& c = link.peer;
+  auto& rec = link.rec;
+  auto& client = link.client;
   const std::string tool = "CatheterTipToTracker";
   auto good = [&](int n) { Send(c, Transform(tool, kT0 + 0.025 * n, PoseAt(n))); };
   int n = 0;
@@ -325,7 +335,7 @@ TEST(EmStream, BadMessagesAreRejectedByReasonAndDeviceWhileTheStreamGoesOn) {
   // Garbage framing: the client drops the connection, reconnects, and goes on.
   std::vector<std::uint8_t> garbage(kHeaderBytes, 0xEE);
   Send(c, garbage);
-  auto c2 = server.Accept();
+  auto c2 = link.server.Accept();
   ASSERT_TRUE(c2.IsNotNull());
   for (int k = 0; k < 3; ++k, ++n) Send(c2, Transform(tool, kT0 + 0.025 * n, PoseAt(n)));
   ASSERT_TRUE(WaitUntil([&] { return rec.size() >= static_cast<std::size_t>(n); }));
@@ -345,12 +355,11 @@ TEST(EmStream, BadMessagesAreRejectedByReasonAndDeviceWhileTheStreamGoesOn) {
 }
 
 TEST(EmStream, PlusInvalidToolMarksAreDropoutsAndAnAllInvalidStreamIsVisible) {
-  PlusLikeServer server;
-  Recorder rec;
-  EmStreamClient client(Options(server.port(), "CatheterTipToTracker", rec));
-  client.Start();
-  auto c = server.Accept();
-  ASSERT_TRUE(c.IsNotNull());
+  Connected link("CatheterTipToTracker");
+  ASSERT_TRUE(link.peer.IsNotNull());
+  auto& c = link.peer;
+  auto& rec = link.rec;
+  auto& client = link.client;
   const std::string tool = "CatheterTipToTracker";
   // Version 1: PLUS sends the identity for a tool out of view (SendValidTransformsOnly
   // FALSE); version 2: its TransformStatus metadata.
