@@ -15,6 +15,7 @@
 #include "apps/commands/live_commands.h"
 #include "apps/commands/motion_commands.h"
 #include "apps/commands/report_command.h"
+#include "apps/commands/tune_commands.h"
 
 namespace echoservo::apps {
 namespace {
@@ -54,6 +55,7 @@ int RunOnce(int argc, const char* const* argv, bool parse_only) {
   AddLiveCommands(app);
   AddReportCommand(app);
   AddCalibrateCommand(app);
+  AddTuneCommand(app);
   // The root's parse-complete callback runs after all parsing and checks and before the
   // subcommands' callbacks (CLI::App::run_callback).
   if (parse_only) app.parse_complete_callback([] { throw ParsedOnly{}; });

@@ -14,6 +14,9 @@
 # only the fuzz executables link the libFuzzer driver. Build them with
 # `cmake --build build-fuzz --target fuzz_all` (builds nothing they do not need).
 option(ECHOSERVO_SANITIZE "Build everything with AddressSanitizer and UndefinedBehaviorSanitizer" OFF)
+# ECHOSERVO_SANITIZE_CLI: also build the echoservo program and the test suites that run it
+# under the sanitizers (off: the libraries and their suites only; tests/CMakeLists.txt).
+option(ECHOSERVO_SANITIZE_CLI "With ECHOSERVO_SANITIZE: also the program and its CLI suites" OFF)
 option(ECHOSERVO_FUZZ "Build the libFuzzer targets (clang only)" OFF)
 
 set(ECHOSERVO_SANITIZER_FLAGS

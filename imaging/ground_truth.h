@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <optional>
 
 namespace echoservo::imaging {
 
@@ -16,6 +17,10 @@ struct FrameGroundTruth {
   Eigen::Vector3d tip_mm = Eigen::Vector3d::Zero();           // guidewire tip
   bool target_visible = false;
   Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();  // where the axis meets tissue
+  // When the volume was really acquired (s, the recording's clock), where its timestamp
+  // says otherwise: a scanner that stamps volumes late (at sending; `echoservo scanner
+  // --record --stamp-delay S`). Unset: the timestamp is the acquisition time.
+  std::optional<double> acquisition_s;
 };
 
 }  // namespace echoservo::imaging

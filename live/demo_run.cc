@@ -27,6 +27,7 @@
 #include "live/delayed_scanner.h"
 #include "live/lock_free.h"
 #include "live/pipeline_clock.h"
+#include "live/pipeline_parameters.h"
 #include "live/run_row_queue.h"
 #include "live/servo_cycle_clock.h"
 #include "live/servo_node.h"
@@ -112,6 +113,13 @@ void DemoOptions::Validate() const {
   if (!(dds_domain >= 0 && dds_domain <= 232)) bad("--dds-domain", "must be in [0, 232]");
   if (!(guidewire_od_mm > 0 && sheath_id_mm > guidewire_od_mm && sheath_id_mm <= 5))
     bad("--sheath-id/--guidewire-od", "must satisfy 0 < guidewire < sheath ≤ 5 mm");
+  for (const auto& [name, value] : settings) {  // names and bounds; combinations: DemoSettings
+    try {
+      CheckValue(RequireParameter(name), value);
+    } catch (const std::invalid_argument& e) {
+      bad("--set", e.what());
+    }
+  }
   realtime.Validate();
   watchdog.Validate(1e-3);    // the simulated catheter's servo period (live/sim_catheter.h)
   if (!secure_dir.empty()) {  // before the scene is built: a bad directory fails at once
@@ -120,13 +128,35 @@ void DemoOptions::Validate() const {
   }
 }
 
+PipelineSettings DemoSettings(const DemoOptions& o) {
+  PipelineSettings s;
+  if (o.zero_order_hold) s.tracker.predictor = TargetPredictor::kZeroOrderHold;
+  s.tracker.ekf.harmonics = o.harmonics;
+  s.tracker.ekf.max_harmonics = std::max(s.tracker.ekf.max_harmonics, o.harmonics);
+  s.follower.standoff_mm = o.standoff_mm;
+  s.follower.offset_gain = 0.05;
+  s.follower.estimate_scale = true;  // image mm = 1540/1482 catheter mm in the water tank
+  s.servo = MakeSimCatheter(o.sheath_id_mm, o.guidewire_od_mm, o.seed).servo;
+  if (!o.settings.empty()) {
+    try {
+      Apply(o.settings, s);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("demo: --set: ") + e.what());
+    }
+  }
+  return s;
+}
+
 DemoResult RunDemo(const DemoOptions& o) {
   o.Validate();
   auto log = [&](const std::string& s) {
     if (o.log) o.log(s);
   };
+  // The tracker's, follower's and servo's settings: the options' own, then --set.
+  const PipelineSettings settings = DemoSettings(o);
+  const double standoff_mm = settings.follower.standoff_mm;
 
-  SimScene scene({o.rate_hz, o.heart_rate_bpm, o.target_p2p_mm, o.standoff_mm, o.seed});
+  SimScene scene({o.rate_hz, o.heart_rate_bpm, o.target_p2p_mm, standoff_mm, o.seed});
   const Eigen::Isometry3d em_to_image = scene.em_to_image();
 
   // The RUN directory (hw/io/run_record.h): run.json now, the streams as they come. If the
@@ -136,11 +166,12 @@ DemoResult RunDemo(const DemoOptions& o) {
   if (!o.out_dir.empty()) {
     hw::RunInfo info;
     info.heart_rate_hz = o.heart_rate_bpm / 60.0;
-    info.standoff_mm = o.standoff_mm;
+    info.standoff_mm = standoff_mm;
     info.metadata_json =
         Fmt("{\"source\": \"echoservo demo\", \"seed\": %llu, \"duration_s\": %.3f, "
-            "\"em_to_image\": \"%s\", \"time_base\": \"pipeline\"}",
-            static_cast<unsigned long long>(o.seed), o.duration_s, RowMajor(em_to_image).c_str());
+            "\"em_to_image\": \"%s\", \"time_base\": \"pipeline\", \"settings\": ",
+            static_cast<unsigned long long>(o.seed), o.duration_s, RowMajor(em_to_image).c_str()) +
+        SettingsJson(settings) + "}";  // every parameter's value (live/pipeline_parameters.h)
     writer = std::make_unique<hw::RunWriter>(o.out_dir, info);
   }
   // The live EM stream's rows go to the writer: stopped before it is destroyed.
@@ -166,11 +197,8 @@ DemoResult RunDemo(const DemoOptions& o) {
   link::TargetPublisher target_pub(tracker_participant);
 
   const PipelineClock clock(0.3);
-  TrackerNodeOptions to;
+  TrackerNodeOptions to = settings.tracker;
   to.link_offset_s = clock.link_offset_s();
-  if (o.zero_order_hold) to.predictor = TargetPredictor::kZeroOrderHold;
-  to.ekf.harmonics = o.harmonics;
-  to.ekf.max_harmonics = std::max(to.ekf.max_harmonics, o.harmonics);
   // The volumes as the tracker receives them, written on the recorder's own thread: the
   // tracker hands each over after publishing and never waits for the disk (a full queue
   // drops the volume, counted).
@@ -180,11 +208,10 @@ DemoResult RunDemo(const DemoOptions& o) {
                                                               o.record_queue_volumes);
   TrackerNode tracker(to, &target_pub, writer.get());
   SimCatheter catheter = MakeSimCatheter(o.sheath_id_mm, o.guidewire_od_mm, o.seed);
+  catheter.servo = settings.servo;
   hw::SimulatedCatheter& plant = *catheter.plant;
   ServoNodeOptions so;
-  so.follower.standoff_mm = o.standoff_mm;
-  so.follower.offset_gain = 0.05;
-  so.follower.estimate_scale = true;  // image mm = 1540/1482 catheter mm in the water tank
+  so.follower = settings.follower;
   // The operator's enable once tracking delivers, and again after a retraction (the demo
   // resumes by itself; a clinical system waits for the operator's ENABLE command).
   so.auto_enable = true;

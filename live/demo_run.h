@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "control/cycle_timing.h"
@@ -61,6 +62,10 @@ struct DemoOptions {
   // shape's). It needs 2·(2·harmonics + 4) volumes before it publishes: 40 at 8, about 1.6 s
   // at 25 vol/s; fewer let a slow host (a sanitizer build) start following sooner.
   int harmonics = 8;
+  // Tunable parameters by name (`--set NAME=VALUE`, live/pipeline_parameters.h), applied in
+  // order over what the options above give (DemoSettings): they override standoff_mm,
+  // harmonics and zero_order_hold. RUN/run.json records every value used ("settings").
+  std::vector<std::pair<std::string, double>> settings;
   double sheath_id_mm = 1.59;  // the seed's water-tank catheter (its two bends)
   double guidewire_od_mm = 1.50;
   int dds_domain = 42;  // the DDS domain of the tracker → servo link (loopback only)
@@ -136,6 +141,15 @@ struct DemoResult {
   int ekf_harmonics = 0;
   double ekf_rate_hz = 0.0;
 };
+
+struct PipelineSettings;  // live/pipeline_parameters.h
+
+// The pipeline's settings RunDemo runs with: the tracker node's defaults with `harmonics` and
+// `zero_order_hold`, the demo's follower (standoff_mm, an offset gain of 0.05, the image/
+// catheter scale estimated: image mm = 1540/1482 catheter mm in the water tank) and the
+// simulated catheter's servo (live/sim_catheter.h), then `settings`. Throws
+// std::invalid_argument naming a bad --set.
+PipelineSettings DemoSettings(const DemoOptions& options);
 
 // Runs the demo for options.duration_s of real time. Throws std::invalid_argument for bad
 // options, std::runtime_error when the RUN directory cannot be written.

@@ -1,5 +1,8 @@
 #include "live/tracker_node.h"
 
+#include <stdexcept>
+#include <string>
+
 #include "hw/io/run_record.h"
 
 namespace echoservo::live {
@@ -29,10 +32,15 @@ TrackerNode::TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publ
       writer_(writer),
       detector_(o_.detector),
       competition_(o_.CompetitionOptions()),
-      significance_(o_.significance) {}
+      significance_(o_.significance) {
+  if (!(o_.stamp_delay_s >= 0.0 && o_.stamp_delay_s <= 0.5))
+    throw std::invalid_argument("TrackerNodeOptions::stamp_delay_s must be in [0, 0.5] s, got " +
+                                std::to_string(o_.stamp_delay_s));
+}
 
-TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double acquired_s,
-                                   double arrived_s, const std::function<double()>& now_s) {
+TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double stamp_s, double arrived_s,
+                                   const std::function<double()>& now_s) {
+  const double acquired_s = stamp_s - o_.stamp_delay_s;
   TrackedVolume out;
   ++stats_.volumes;
   auto fail = [&](const std::exception& e) {
@@ -71,7 +79,7 @@ TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double acquire
   out.measured = true;
   ++stats_.measured;
   out.published_s = std::max(arrived_s, now_s());
-  if ((hold || competition_.ekf().initialised()) && publisher_) {
+  if (hold || competition_.ekf().initialised()) {
     link::TargetEstimateSample s;
     s.sequence_number = ++sequence_;
     s.acquisition_time_s = acquired_s + o_.link_offset_s;
@@ -97,13 +105,16 @@ TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double acquire
     out.sequence = s.sequence_number;
     out.heartbeat = heartbeat;
     out.confidence = s.confidence;
-    out.published = publisher_->Publish(s);
-    if (out.published) {
-      ++stats_.published;
-      if (!hold) ++(heartbeat ? stats_.published_heartbeat : stats_.published_hold);
-    } else {
-      ++stats_.publish_failures;
+    if (publisher_) {
+      out.published = publisher_->Publish(s);
+      if (out.published) {
+        ++stats_.published;
+        if (!hold) ++(heartbeat ? stats_.published_heartbeat : stats_.published_hold);
+      } else {
+        ++stats_.publish_failures;
+      }
     }
+    out.estimate = std::move(s);
   }
   if (writer_)
     writer_->AddTarget({acquired_s, arrived_s, out.published_s, true, det.target_mm, det.tip_mm,

@@ -52,6 +52,10 @@ struct TrackerNodeOptions {
   double link_offset_s = 0.0;  // link time − node time
   // The horizon the competitors are scored at (s): the imaging delay plus publication.
   double prediction_latency_s = 0.1;
+  // The scanner stamps volumes this long after their acquisition (it stamps at sending, not
+  // at acquisition: PLUS's LocalTimeOffsetSec of a video device): Process subtracts it from
+  // the acquisition time it is given. [0, 0.5] s.
+  double stamp_delay_s = 0.0;
 
   // The live defaults: a 2 s initial window, 8 harmonics.
   static estimation::HeartbeatEkfOptions DefaultEkfOptions();
@@ -69,6 +73,9 @@ struct TrackedVolume {
   std::uint64_t sequence = 0;  // its sequence number
   double published_s = 0.0;    // node clock
   std::string error;           // non-empty when the volume could not be processed
+  // The estimate the node published, or, without a link, would have published (a replay
+  // scores it: tune/trial.h); nullopt when none went out (not measured, EKF not initialised).
+  std::optional<link::TargetEstimateSample> estimate;
 };
 
 struct TrackerStats {
@@ -85,9 +92,10 @@ class TrackerNode {
   // the caller (imaging::AsyncSequenceWriter, off the estimate's path).
   TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher, hw::RunWriter* writer);
 
-  // Processes one volume acquired at `acquired_s` that arrived at `arrived_s`; `now_s`
-  // gives the node clock (the publication time is taken after detection and EKF).
-  TrackedVolume Process(const imaging::Volume& volume, double acquired_s, double arrived_s,
+  // Processes one volume stamped `stamp_s` (acquired stamp_delay_s earlier) that arrived at
+  // `arrived_s`; `now_s` gives the node clock (the publication time is taken after detection
+  // and EKF).
+  TrackedVolume Process(const imaging::Volume& volume, double stamp_s, double arrived_s,
                         const std::function<double()>& now_s);
 
   const TrackerStats& stats() const { return stats_; }

@@ -22,6 +22,9 @@ packages=(
   xauth
   iproute2
   rt-tests
+  libnlopt-dev
+  slurm-wlm
+  munge
 )
 
 missing=()

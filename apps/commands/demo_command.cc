@@ -22,6 +22,7 @@
 #include "apps/commands/live_commands.h"
 #include "apps/commands/realtime_flags.h"
 #include "apps/commands/report_command.h"
+#include "apps/commands/set_flags.h"
 #include "live/demo_run.h"
 
 namespace echoservo::apps {
@@ -37,10 +38,12 @@ struct DemoArgs {
   bool baseline = false;
   EmConnectFlags em;    // --em-connect: a PLUS server's EM stream writes em.csv
   IgtlServeFlags igtl;  // --igtl-serve: the detections to OpenIGTLink viewers (Slicer)
+  SetFlags set;         // --set NAME=VALUE (live/pipeline_parameters.h), over the flags
 };
 
 void RunDemoCommand(const DemoArgs& a) {
   live::DemoOptions o = a.options;
+  o.settings = a.set.Parsed();  // over --standoff, --harmonics (live::DemoSettings)
   o.out_dir = a.out;
   o.realtime = ToRealtimeOptions(a.rt);
   o.watchdog = ToWatchdogConfig(a.rt, 1e-3);  // the simulated catheter's 1 kHz servo
@@ -246,6 +249,7 @@ void AddLiveCommands(CLI::App& app) {
   AddRealtimeFlags(*demo, args->rt);
   AddEmConnectFlags(*demo, args->em);
   AddIgtlServeFlags(*demo, args->igtl);
+  AddSetFlags(*demo, args->set);
   demo->add_flag("--json", args->json, "print the figures as JSON");
   demo->callback([args] { RunDemoCommand(*args); });
   AddTrackCommand(app);

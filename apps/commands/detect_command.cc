@@ -17,7 +17,9 @@
 #include <string>
 
 #include "apps/commands/imaging_commands.h"
+#include "apps/commands/set_flags.h"
 #include "imaging/io/recording.h"
+#include "live/pipeline_parameters.h"
 #include "tracking/radon_detector.h"
 
 namespace echoservo::apps {
@@ -101,12 +103,26 @@ void AddDetectCommand(CLI::App& app) {
                   "non-zero): parallel beams")
       ->check([](const std::string& t) { return Vec3Problem(t, true, nullptr); })
       ->excludes(apex_opt);
-  cmd->callback([file, json, track, options, apex, beam_direction] {
+  auto set = std::make_shared<SetFlags>();
+  AddSetFlags(*cmd, *set);
+  cmd->callback([file, json, track, options, apex, beam_direction, set] {
     if (!apex->empty())
       options->beams = tracking::BeamGeometry::FromApex(ParseVec3(*apex, "--probe-apex", false));
     if (!beam_direction->empty())
       options->beams =
           tracking::BeamGeometry::Parallel(ParseVec3(*beam_direction, "--beam-direction", true));
+    // --set: the detector's and the target profile's parameters, over the flags above.
+    if (!set->assignments.empty()) {
+      live::PipelineSettings settings = live::DefaultSettings();
+      settings.tracker.detector = *options;
+      try {
+        live::Apply(set->ParsedFor("detect", {"detector", "target"}), settings);
+      } catch (const std::invalid_argument& e) {
+        const std::string why = e.what();
+        throw std::invalid_argument(why.rfind("--set", 0) == 0 ? why : "detect --set: " + why);
+      }
+      *options = settings.tracker.detector;
+    }
     tracking::RadonDetector detector(*options);  // validates the combination (wire ≤ sheath)
     auto source = imaging::OpenRecording(*file);
     nlohmann::json frames = nlohmann::json::array();

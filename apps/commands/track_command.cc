@@ -37,6 +37,7 @@
 #include "apps/commands/igtl_serve_flags.h"
 #include "apps/commands/link_flags.h"
 #include "apps/commands/live_commands.h"
+#include "apps/commands/set_flags.h"
 #include "hw/io/durable_file.h"
 #include "hw/io/run_dir_guard.h"
 #include "hw/io/run_record.h"
@@ -46,6 +47,7 @@
 #include "link/clock.h"
 #include "live/delayed_scanner.h"
 #include "live/pipeline_clock.h"
+#include "live/pipeline_parameters.h"
 #include "live/sim_scene.h"
 #include "live/tracker_node.h"
 
@@ -81,6 +83,7 @@ struct TrackArgs {
   LinkFlags link;
   EmConnectFlags em;    // --em-connect: a PLUS server's EM stream into RUN/em.csv
   IgtlServeFlags igtl;  // --igtl-serve: the detections to OpenIGTLink viewers (Slicer)
+  SetFlags set;         // --set NAME=VALUE: tunable parameters, over the flags below
   bool sim = false;
   std::string connect;
   std::string replay;
@@ -144,6 +147,27 @@ void RunTrack(const TrackArgs& a) {
   to.ekf.max_harmonics = a.max_harmonics;
   to.ekf.init_window_s = a.init_window_s;
   to.follow_static_target = a.follow_static_target;
+  // --set (live/pipeline_parameters.h) over the flags: every stage's parameter is accepted
+  // (and recorded in run.json), the follower's and the servo's with a warning (no servo here).
+  live::PipelineSettings settings = live::DefaultSettings();
+  settings.tracker = to;
+  {
+    const std::vector<live::Assignment> sets = a.set.Parsed();
+    for (const live::Assignment& s : sets) {
+      const std::string& stage = live::RequireParameter(s.first).stage;
+      if (stage == "follower" || stage == "servo")
+        std::fprintf(stderr,
+                     "track: --set %s: the %s does not run in `track` (recorded in run.json "
+                     "only; `demo` and `tune` run it)\n",
+                     live::FormatAssignment(s).c_str(), stage.c_str());
+    }
+    try {
+      live::Apply(sets, settings);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("track --set: ") + e.what());
+    }
+    to = settings.tracker;
+  }
   // A run that fails leaves no half-written RUN behind, so the same command can be retried.
   hw::RunDirGuard run_guard(a.out);
   std::unique_ptr<hw::RunWriter> writer;
@@ -162,6 +186,10 @@ void RunTrack(const TrackArgs& a) {
            a.sim ? "pipeline"
                  : "unix"}}.dump();
     }
+    // The settings used, every parameter by name (`echoservo tune params`).
+    nlohmann::json meta = nlohmann::json::parse(info.metadata_json);
+    meta["settings"] = nlohmann::json::parse(live::SettingsJson(settings));
+    info.metadata_json = meta.dump();
     writer = std::make_unique<hw::RunWriter>(a.out, info);
   }
   // The EM stream writes to `writer`: stopped before the writer goes, however this is left.
@@ -426,6 +454,7 @@ void AddTrackCommand(CLI::App& app) {
   AddLinkFlags(*cmd, a->link);
   AddEmConnectFlags(*cmd, a->em);
   AddIgtlServeFlags(*cmd, a->igtl);
+  AddSetFlags(*cmd, a->set);
   cmd->add_flag("--json", a->json, "print the summary as JSON");
   cmd->callback([a] { RunTrack(*a); });
 }

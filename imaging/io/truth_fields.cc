@@ -61,6 +61,11 @@ void SetTruthFields(const FrameGroundTruth& t, std::map<std::string, std::string
   f["CatheterTip"] = Vec(t.tip_mm);
   f["TargetVisible"] = Flag(t.target_visible);
   f["Target"] = Vec(t.target_mm);
+  if (t.acquisition_s) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.9f", *t.acquisition_s);
+    f["AcquisitionTime"] = buf;
+  }
 }
 
 std::optional<FrameGroundTruth> TruthFromFields(const std::map<std::string, std::string>& f) {
@@ -72,6 +77,16 @@ std::optional<FrameGroundTruth> TruthFromFields(const std::map<std::string, std:
   t.tip_mm = ParseVec(f, "CatheterTip");
   t.target_visible = ParseFlag(f, "TargetVisible");
   t.target_mm = ParseVec(f, "Target");
+  if (const auto it = f.find("AcquisitionTime"); it != f.end()) {
+    double a = 0.0;
+    const char* p = it->second.data();
+    const char* end = p + it->second.size();
+    const auto [next, ec] = std::from_chars(p, end, a);
+    if (ec != std::errc() || next != end || !std::isfinite(a)) {
+      Fail("AcquisitionTime", "is not a finite number");
+    }
+    t.acquisition_s = a;
+  }
   if (std::abs(t.axis_direction.norm() - 1.0) > 1e-6) {
     Fail("CatheterAxisDirection", "is not a unit vector");
   }

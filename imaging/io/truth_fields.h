@@ -3,7 +3,8 @@
 //
 // Fields (points in mm in the volume's image frame, directions unit vectors, flags 0/1):
 //   CatheterVisible, CatheterAxisPoint "x y z", CatheterAxisDirection "x y z",
-//   CatheterTip "x y z", TargetVisible, Target "x y z".
+//   CatheterTip "x y z", TargetVisible, Target "x y z", and optionally AcquisitionTime (s,
+//   the recording's clock: the true acquisition time of a volume stamped late).
 // PLUS and 3D Slicer keep unknown per-frame fields, so the files stay standard.
 #pragma once
 

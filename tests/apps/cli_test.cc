@@ -2,15 +2,19 @@
 // run it, its JSON parsed, and bad input checked for a clear error and a failing exit.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "hw/effect_registry.h"
 #include "hw/io/trial_io.h"
 #include "tests/test_util/cli_runner.h"
+#include "tests/test_util/sanitizers.h"
 #include "tests/test_util/temp_dir.h"
 
 namespace echoservo {
@@ -149,6 +153,64 @@ TEST(Cli, CatheterFileIsStrict) {
   EXPECT_NE(RunCli("sim track --catheter " + (dir.path() / "missing.json").string())
                 .err.find("not found"),
             std::string::npos);
+}
+
+// `tune params`: the parameter registry (live/pipeline_parameters.h) as JSON, as a table and
+// by stage, and what it lists is what --set takes: every name, at its upper bound, on `track`
+// (which checks its --set before it opens the recording).
+TEST(Cli, TuneParamsListsEveryParameterThatSetAccepts) {
+  ECHOSERVO_RELEASE_SUITE_ONLY(
+      "five runs of the program; the registry's own checks run in "
+      "tests/live/pipeline_parameters_test.cc");
+  const Result r = RunCli("tune params --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto list = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(list.is_array());
+  ASSERT_GE(list.size(), 20u);
+  std::vector<std::string> names;
+  std::map<std::string, std::size_t> per_stage;
+  std::string at_max;
+  for (const auto& p : list) {
+    const std::string name = p["name"];
+    names.push_back(name);
+    ++per_stage[p["stage"]];
+    EXPECT_EQ(name.substr(0, name.find('.')), p["stage"].get<std::string>());
+    EXPECT_LE(p["min"].get<double>(), p["default"].get<double>()) << name;
+    EXPECT_LE(p["default"].get<double>(), p["max"].get<double>()) << name;
+    for (const char* key : {"unit", "kind", "description"})
+      EXPECT_FALSE(p[key].get<std::string>().empty()) << name << " " << key;
+    at_max += " --set " + name + "=" + nlohmann::json(p["max"].get<double>()).dump();
+  }
+  EXPECT_TRUE(std::is_sorted(names.begin(), names.end()));
+  EXPECT_EQ(std::adjacent_find(names.begin(), names.end()), names.end());  // unique
+  for (const char* name : {"detector.sheath_diameter_mm", "predictor.harmonics",
+                           "predictor.init_window_s", "follower.standoff_mm", "servo.kp_n_per_mm"})
+    EXPECT_NE(std::find(names.begin(), names.end(), name), names.end()) << name;
+  // The table: a header and one row per parameter, in the same order.
+  const Result table = RunCli("tune params");
+  ASSERT_EQ(table.rc, 0) << table.err;
+  std::vector<std::string> rows;
+  std::istringstream lines(table.out);
+  for (std::string line; std::getline(lines, line);) rows.push_back(line.substr(0, line.find(' ')));
+  ASSERT_EQ(rows.size(), names.size() + 1);
+  EXPECT_EQ(rows[0], "name");
+  EXPECT_TRUE(std::equal(names.begin(), names.end(), rows.begin() + 1));
+  // By stage: scanner, detector, target, predictor, follower, servo.
+  EXPECT_EQ(per_stage.size(), 6u);
+  const Result detector = RunCli("tune params --json --stage detector");
+  ASSERT_EQ(detector.rc, 0) << detector.err;
+  const auto part = nlohmann::json::parse(detector.out);
+  EXPECT_EQ(part.size(), per_stage["detector"]);
+  for (const auto& p : part) EXPECT_EQ(p["stage"], "detector");
+  EXPECT_NE(RunCli("tune params --stage tracker").err.find("unknown stage"), std::string::npos);
+  // Every name at its upper bound passes --set (the error is then the missing recording's,
+  // not a parameter's): a 10 mm guidewire fits a 10 mm sheath, contact (2 mm) is closer than
+  // a close gap of 20 mm. The lower bounds: tests/live/pipeline_parameters_test.cc.
+  TempDir dir("tune_params_cli", true);
+  const Result t = RunCli("track --replay missing.igs.mha" + at_max, dir.path());
+  EXPECT_NE(t.rc, 0);
+  EXPECT_NE(t.err.find("missing.igs.mha"), std::string::npos) << t.err;
+  EXPECT_EQ(t.err.find("parameter"), std::string::npos) << t.err;
 }
 
 struct BadInput {

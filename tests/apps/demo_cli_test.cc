@@ -30,8 +30,11 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
   const fs::path run = dir.path() / "run";
   // 3 harmonics: the EKF publishes after 20 volumes, not 40, so that a host that processes only
   // ~7 vol/s (an ASan build beside other tests) still follows for several seconds, and the
-  // report has tip motion to align the EM log with (it refuses < 1 mm of spread).
-  const auto r = RunCli("demo --duration 8 --harmonics 3 --json --out " + ShellQuote(run.string()));
+  // report has tip motion to align the EM log with (it refuses < 1 mm of spread). Given by
+  // --set, which overrides --harmonics (live/pipeline_parameters.h).
+  const auto r =
+      RunCli("demo --duration 8 --harmonics 5 --set predictor.harmonics=3 --json --out " +
+             ShellQuote(run.string()));
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   for (const char* key : {"tip_to_target_rms_mm", "true_tip_to_target_rms_mm", "latency_ms",
@@ -76,6 +79,12 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
                         "truth.csv", "timing.json", "report.html"})
     EXPECT_TRUE(fs::exists(run / f)) << f;
   EXPECT_EQ(ReadFile(run / "em.csv").substr(0, 25), "t_s,x_mm,y_mm,z_mm,status");
+  // run.json records every parameter's value, --set's included.
+  const auto settings = nlohmann::json::parse(ReadFile(run / "run.json"))["settings"];
+  ASSERT_TRUE(settings.is_object());
+  EXPECT_EQ(settings["predictor.harmonics"].get<double>(), 3.0);
+  EXPECT_EQ(settings["follower.standoff_mm"].get<double>(), 8.0);  // the demo's default
+  EXPECT_GE(settings.size(), 20u);
   // The report aligns the EM log (with the run's EM calibration) and measures the run.
   const auto rep = RunCli("report " + ShellQuote(run.string()) + " --json --out " +
                           ShellQuote((dir.path() / "report.html").string()));

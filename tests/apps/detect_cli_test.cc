@@ -1,5 +1,6 @@
 // `echoservo detect` on a simulated recording (its ground truth rides in the PLUS sequence's
-// per-frame fields) and on bad input.
+// per-frame fields) and on bad input; `--set NAME=VALUE` (live/pipeline_parameters.h) on
+// `detect` and `track --replay` of the same recording.
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
@@ -9,8 +10,10 @@
 #include <numbers>
 #include <regex>
 #include <string>
+#include <vector>
 
 #include "tests/test_util/cli_runner.h"
+#include "tests/test_util/sanitizers.h"
 #include "tests/test_util/temp_dir.h"
 
 namespace echoservo {
@@ -40,13 +43,21 @@ class DetectCli : public ::testing::Test {
     ASSERT_EQ(r.rc, 0) << r.err;
   }
   static void TearDownTestSuite() { delete dir_; }
+  // `detect rec.igs.mha --json`'s output, run once for the cases that compare with it.
+  static const std::string& Detected() {
+    static const testing::RunResult r = RunCli("detect rec.igs.mha --json", dir_->path());
+    EXPECT_EQ(r.rc, 0) << r.err;
+    return r.out;
+  }
   static testing::TempDir* dir_;
 };
 testing::TempDir* DetectCli::dir_ = nullptr;
 
 TEST_F(DetectCli, FindsTheRecordedCatheterWithinHalfAMillimetre) {
   for (const char* mode : {"", " --track"}) {
-    const auto r = RunCli(std::string("detect rec.igs.mha --json") + mode, dir_->path());
+    const auto r = std::string(mode).empty()
+                       ? testing::RunResult{0, Detected(), ""}
+                       : RunCli(std::string("detect rec.igs.mha --json") + mode, dir_->path());
     ASSERT_EQ(r.rc, 0) << r.err;
     const auto j = nlohmann::json::parse(r.out);
     const std::string header = testing::ReadFile(dir_->path() / "rec.igs.mha").substr(0, 20000);
@@ -79,6 +90,86 @@ TEST_F(DetectCli, BadArgumentsAndFilesAreClearErrors) {
   r = RunCli("detect missing.mha", dir_->path());
   EXPECT_NE(r.rc, 0);
   EXPECT_NE(r.err.find("missing.mha"), std::string::npos) << r.err;
+}
+
+// The axis fit's near-wall model (tracking/echo_axis_fit.h): a beam sees the sheath at its
+// near wall, so the axis lies the sheath's radius behind the echoes, along the beam's
+// component perpendicular to the axis. The same echoes fitted with a 5 mm instead of a 2.5 mm
+// sheath give an axis 1.25 mm further from the probe, parallel to the first.
+TEST_F(DetectCli, SetSheathDiameterMovesTheAxisByTheRadiusChange) {
+  ECHOSERVO_RELEASE_SUITE_ONLY("a detection of two volumes; the error paths run below");
+  // The recording's image-to-probe transform is the identity: the probe apex (where every
+  // beam starts) is the image origin.
+  const std::string header = testing::ReadFile(dir_->path() / "rec.igs.mha").substr(0, 20000);
+  ASSERT_NE(header.find("Seq_Frame0000_ImageToProbeTransform = 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1"),
+            std::string::npos);
+  const auto wide =
+      RunCli("detect rec.igs.mha --json --set detector.sheath_diameter_mm=5", dir_->path());
+  ASSERT_EQ(wide.rc, 0) << wide.err;
+  const auto a = nlohmann::json::parse(Detected())["frames"];
+  const auto b = nlohmann::json::parse(wide.out)["frames"];
+  ASSERT_EQ(a.size(), 2u);
+  ASSERT_EQ(b.size(), 2u);
+  for (std::size_t f = 0; f < 2; ++f) {
+    ASSERT_TRUE(a[f]["found"].get<bool>() && b[f]["found"].get<bool>()) << f;
+    const Eigen::Vector3d tip = Vec(a[f]["tip"]), da = Vec(a[f]["axis_direction"]);
+    const Eigen::Vector3d pb = Vec(b[f]["axis_point"]), db = Vec(b[f]["axis_direction"]);
+    EXPECT_GT(std::abs(da.dot(db)), std::cos(0.01)) << f;  // parallel
+    // The second axis's offset from the first at the tip, and the beam there (from the apex).
+    const Eigen::Vector3d offset = pb + db * db.dot(tip - pb) - tip;
+    const Eigen::Vector3d beam_perp = (tip - da * da.dot(tip)).normalized();
+    EXPECT_NEAR(offset.dot(beam_perp), (5.0 - 2.5) / 2, 0.05) << f;  // away from the probe
+    EXPECT_LT((offset - offset.dot(beam_perp) * beam_perp).norm(), 0.05) << f;
+  }
+}
+
+TEST_F(DetectCli, BadSetIsAClearErrorNamingTheParameter) {
+  ECHOSERVO_RELEASE_SUITE_ONLY(
+      "three runs of the program; the registry's own checks run in "
+      "tests/live/pipeline_parameters_test.cc");
+  const struct {
+    const char* set;
+    std::vector<std::string> says;
+  } cases[] = {
+      {"predictor.harmonics=4",
+       {"--set predictor.harmonics=4", "does not apply to `detect`", "detector.*, target.*"}},
+      {"detector.sheth_diameter_mm=2",
+       {"unknown parameter 'detector.sheth_diameter_mm' (closest: detector.sheath_diameter_mm",
+        "echoservo tune params"}},
+      {"detector.wire_diameter_mm=3",
+       {"detector.wire_diameter_mm = 3", "detector.sheath_diameter_mm = 2.5"}},
+  };
+  for (const auto& c : cases) {
+    const auto r = RunCli(std::string("detect rec.igs.mha --set ") + c.set, dir_->path());
+    EXPECT_NE(r.rc, 0) << c.set;
+    EXPECT_TRUE(r.out.empty()) << c.set << ": " << r.out;  // refused before any frame
+    for (const std::string& part : c.says)
+      EXPECT_NE(r.err.find(part), std::string::npos) << c.set << ": " << r.err;
+  }
+}
+
+// `track --replay` takes the same names (every stage's: the follower's and the servo's with a
+// warning, no servo runs there), --set wins over the dedicated flags, and RUN/run.json records
+// every value used.
+TEST_F(DetectCli, TrackReplayAppliesAndRecordsItsSettings) {
+  ECHOSERVO_RELEASE_SUITE_ONLY("a replay of two volumes");
+  const auto r = RunCli(
+      "track --replay rec.igs.mha --out run_set --harmonics 4 --set predictor.harmonics=6 "
+      "--set detector.sheath_diameter_mm=3 --set servo.kp_n_per_mm=20",
+      dir_->path());
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.err.find("--set servo.kp_n_per_mm=20: the servo does not run in `track`"),
+            std::string::npos)
+      << r.err;
+  const auto run = nlohmann::json::parse(testing::ReadFile(dir_->path() / "run_set/run.json"));
+  const auto& settings = run["settings"];
+  ASSERT_TRUE(settings.is_object()) << run.dump();
+  EXPECT_EQ(settings["predictor.harmonics"].get<double>(), 6.0);  // not --harmonics' 4
+  EXPECT_EQ(settings["detector.sheath_diameter_mm"].get<double>(), 3.0);
+  EXPECT_EQ(settings["servo.kp_n_per_mm"].get<double>(), 20.0);
+  EXPECT_EQ(settings["predictor.init_window_s"].get<double>(), 2.0);  // track's default
+  EXPECT_GE(settings.size(), 20u);  // every parameter (`tune params`), not only those set
+  EXPECT_TRUE(settings.contains("follower.standoff_mm"));
 }
 
 }  // namespace

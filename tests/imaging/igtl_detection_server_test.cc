@@ -407,6 +407,7 @@ TEST(IgtlDetectionServer, RejectsBadOptions) {
 // The flags of `track` and `demo` (apps/commands/igtl_serve_flags.h): mistakes are errors
 // naming the flag, before the run starts (a port in use: before any DDS participant or scan).
 TEST(IgtlDetectionServer, CliRejectsBadIgtlFlagsBeforeTheRun) {
+  ECHOSERVO_REQUIRES_CLI();
   using ::echoservo::testing::RunCli;
   const auto no_port = RunCli("demo --duration 1 --igtl-volumes");
   EXPECT_EQ(no_port.rc, 1);
@@ -435,6 +436,7 @@ int FreePort() {
 // gets the detections, stamped on the Unix clock within the run and in order, and `--json`'s
 // igtl_serve counts what was published.
 TEST(IgtlDetectionServer, TrackConnectServesDetectionsToALibIgtlClient) {
+  ECHOSERVO_REQUIRES_CLI();
   ECHOSERVO_RELEASE_SUITE_ONLY("runs the tracker process for 1.5 s; the server is tested above");
   PhantomOptions po;
   po.dims = {80, 60, 60};

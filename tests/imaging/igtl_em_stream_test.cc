@@ -426,6 +426,7 @@ TEST(EmStream, BadOptionsAreClearErrors) {
 // tool and a NaN pose) to `echoservo track --sim --em-connect`; RUN/em.csv holds every pose
 // once, in order, and RUN/em_stream.json and --json's em_stream count what was skipped.
 TEST(EmStreamCli, TrackWritesTheLiveStreamIntoTheRunsEmLog) {
+  ECHOSERVO_REQUIRES_CLI();
   ECHOSERVO_RELEASE_SUITE_ONLY(
       "a real-time track --sim run; the client's code runs in EmStream.* under the sanitizers");
   const ::echoservo::testing::TempDir dir("em_stream_cli", true);

@@ -22,6 +22,7 @@ using testing::ShellQuote;
 const std::string kPlus = std::string(ECHOSERVO_DATA_DIR) + "/plus/";
 
 TEST(InfoCli, SequenceJson) {
+  ECHOSERVO_REQUIRES_CLI();
   const auto r = RunCli("info " + ShellQuote(kPlus + "NwirePhantomFreehand.igs.mha") + " --json");
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
@@ -37,6 +38,7 @@ TEST(InfoCli, SequenceJson) {
 }
 
 TEST(InfoCli, TrackerOnlyAndVolume) {
+  ECHOSERVO_REQUIRES_CLI();
   auto r = RunCli("info " +
                   ShellQuote(kPlus + "WaterTankBottomTranslationTrackerBuffer-trimmed.igs.mha") +
                   " --json");
@@ -58,6 +60,7 @@ TEST(InfoCli, TrackerOnlyAndVolume) {
 }
 
 TEST(InfoCli, ErrorsNameTheFile) {
+  ECHOSERVO_REQUIRES_CLI();
   auto r = RunCli("info /nonexistent/file.mha --json");
   EXPECT_NE(r.rc, 0);
   ExpectContains(r.err, "/nonexistent/file.mha");
@@ -68,6 +71,7 @@ TEST(InfoCli, ErrorsNameTheFile) {
 // cannot be read is reported on its line with the reason, the others are still described,
 // and the command then exits non-zero. Other files and folders are counted as ignored.
 TEST(InfoCli, FolderListsEachVolumeSequenceAndRunAndErrorsPerFile) {
+  ECHOSERVO_REQUIRES_CLI();
   const testing::TempDir dir("info_cli", true);
   const auto& d = dir.path();
   imaging::WriteVolume(imaging::test_frames::Frame(0), d / "a.mha", {.compress = false});

@@ -232,6 +232,7 @@ TEST(RenderIsosurface, InProcessWhenADisplayIsAvailable) {
 // ---- the CLI ----
 
 TEST(RenderCli, PhantomSlicesPng) {
+  ECHOSERVO_REQUIRES_CLI();
   TempDir dir("render", true);
   const auto png = dir.path() / "cli.png";
   const auto r = RunCli("render --phantom --out " + ShellQuote(png.string()) +
@@ -249,6 +250,7 @@ TEST(RenderCli, PhantomSlicesPng) {
 }
 
 TEST(RenderCli, BadOptionsNameTheOption) {
+  ECHOSERVO_REQUIRES_CLI();
   TempDir dir("render", true);
   const std::string out = " --out " + ShellQuote((dir.path() / "x.png").string());
   auto r = RunCli("render --phantom --axis 1,2,3,4,5" + out);
@@ -264,6 +266,7 @@ TEST(RenderCli, BadOptionsNameTheOption) {
 }
 
 TEST(RenderCli, ThreeDWithoutDisplayFailsCleanly) {
+  ECHOSERVO_REQUIRES_CLI();
   TempDir dir("render", true);
   const auto png = dir.path() / "3d.png";
   const auto r = RunShell("env -u DISPLAY " + std::string(ECHOSERVO_CLI) +
@@ -274,6 +277,7 @@ TEST(RenderCli, ThreeDWithoutDisplayFailsCleanly) {
 }
 
 TEST(RenderCli, ThreeDWithABadDisplayFailsCleanly) {
+  ECHOSERVO_REQUIRES_CLI();
   TempDir dir("render", true);
   const auto png = dir.path() / "3d.png";
   const auto r = RunShell("DISPLAY=:9876 " + std::string(ECHOSERVO_CLI) +
@@ -284,6 +288,7 @@ TEST(RenderCli, ThreeDWithABadDisplayFailsCleanly) {
 }
 
 TEST(RenderCli, ThreeDUnderXvfb) {
+  ECHOSERVO_REQUIRES_CLI();
   if (RunShell("command -v xvfb-run").rc != 0) GTEST_SKIP() << "xvfb-run is not installed";
   TempDir dir("render", true);
   const auto png = dir.path() / "3d.png";
@@ -339,6 +344,7 @@ namespace echoservo::imaging {
 namespace {
 
 TEST(RenderCli, ReadsAVolumeFile) {
+  ECHOSERVO_REQUIRES_CLI();
   TempDir dir("render", true);
   const auto mha = dir.path() / "phantom.mha";
   WriteVolume(MakeRenderPhantom(), mha);

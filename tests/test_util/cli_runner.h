@@ -3,6 +3,7 @@
 // a temporary file, and the exit code.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -65,4 +66,22 @@ inline RunResult RunCli(const std::string& args, const std::filesystem::path& cw
   return RunShell(cwd.empty() ? cli : "cd " + ShellQuote(cwd.string()) + " && " + cli);
 }
 
+// Whether this build has the echoservo program: the sanitizer build leaves it out unless
+// ECHOSERVO_SANITIZE_CLI is ON (tests/CMakeLists.txt).
+#if defined(ECHOSERVO_CLI_BUILT) && !ECHOSERVO_CLI_BUILT
+inline constexpr bool kCliBuilt = false;
+#else
+inline constexpr bool kCliBuilt = true;
+#endif
+
 }  // namespace echoservo::testing
+
+// Skips the current test where the echoservo program is not built, saying why. For the
+// tests of a library suite that also run the program; suites that only drive the program
+// are not built there at all (echoservo_test CLI / NEEDS_CLI).
+#define ECHOSERVO_REQUIRES_CLI()                                                            \
+  do {                                                                                      \
+    if (!::echoservo::testing::kCliBuilt)                                                   \
+      GTEST_SKIP() << "runs the echoservo program, which this build leaves out (sanitizer " \
+                      "stage without ECHOSERVO_SANITIZE_CLI; the Release suite runs it)";   \
+  } while (0)
