@@ -20,7 +20,14 @@
 //    Target (issue 15): <= 60 s on 2 cores for 60 trials x 7 s. Counters: unexplained (1
 //    when the verdict is), where_is_base (1 when the force channel's first variable is
 //    base_mm), proposal_force_over_noise (held-out force RMS with the proposal / noise).
-// Both measure wall time (UseRealTime) and report seconds; run on an otherwise idle
+//  - BM_DiagnoseLearn: the same with an effect outside the discovery LIBRARY too (a
+//    periodic friction along the guidewire, a braided sheath: friction magnitude +
+//    0.08 N·(1 + sin(2π·base/3 mm + 0.7))): the catalog, the library, then a shape learnt
+//    and fitted through the model (lab/shape_learning.h) and distilled into a formula.
+//    Target (issue 29): <= 60 s on 2 cores for 60 trials x 7 s, learning and distilling
+//    included. Counters: proposal_force_over_noise, formula (1 when a formula is proposed),
+//    period_mm (the proposal's fitted period, truth 3 mm).
+// They measure wall time (UseRealTime) and report seconds; run on an otherwise idle
 // machine. Standard Google Benchmark flags apply (--benchmark_filter, ...).
 #include <benchmark/benchmark.h>
 #include <unistd.h>
@@ -78,6 +85,22 @@ echoservo::hw::EffectRegistry& TightSpotCatalog() {
                        {"x0_mm", "mm", 2.0, -20.0, 20.0, "centre"},
                        {"w_mm", "mm", 1.5, 0.1, 20.0, "width"}};
     spec.expressions = {{"friction_n", "a_n*exp(-((base_mm-x0_mm)/w_mm)^2)"}};
+    echoservo::hw::RegisterEffectSpec(r, spec);
+    return r;
+  }();
+  return registry;
+}
+
+// The catalog plus a periodic friction along the base (outside the discovery library).
+echoservo::hw::EffectRegistry& RippleCatalog() {
+  static echoservo::hw::EffectRegistry registry = [] {
+    echoservo::hw::EffectRegistry r = echoservo::hw::EffectRegistry::WithBuiltinEffects();
+    echoservo::hw::EffectFileSpec spec;
+    spec.name = "braid_ripple";
+    spec.parameters = {{"a_n", "N", 0.08, 0.0, 5.0, "half the peak-to-peak"},
+                       {"p_mm", "mm", 3.0, 0.5, 20.0, "period"},
+                       {"phi_rad", "rad", 0.7, -7.0, 7.0, "phase"}};
+    spec.expressions = {{"friction_n", "a_n*(1+sin(2*pi*base_mm/p_mm+phi_rad))"}};
     echoservo::hw::RegisterEffectSpec(r, spec);
     return r;
   }();
@@ -165,6 +188,33 @@ void BM_DiagnoseDiscover(benchmark::State& state) {
   state.SetLabel(d.proposal ? d.proposal->equation : d.summary);
 }
 BENCHMARK(BM_DiagnoseDiscover)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+
+void BM_DiagnoseLearn(benchmark::State& state) {
+  static const std::unique_ptr<LabDataset> dataset =
+      RecordedDataset("ripple", "seed+braid_ripple", RippleCatalog());
+  const LabDataset& ds = *dataset;
+  DiagnoseOptions o;
+  o.threads = 2;
+  o.fit.threads = 2;
+  Diagnosis d;
+  for (auto _ : state) {
+    d = Diagnose(echoservo::hw::SeedEffects(), ds, o);
+    benchmark::DoNotOptimize(d.candidates.data());
+  }
+  state.counters["trials"] = static_cast<double>(ds.trials.size());
+  state.counters["samples"] = static_cast<double>(Samples(ds));
+  state.counters["proposal_force_over_noise"] =
+      d.proposal ? d.proposal->force_rms_n / ds.noise.force_n : 0.0;
+  state.counters["formula"] = d.learning.proposed == "formula" ? 1.0 : 0.0;
+  double period = 0.0;
+  if (d.proposal) {
+    for (const auto& p : d.proposal->effect.parameters)
+      if (p.name.find("period") != std::string::npos) period = p.default_value;
+  }
+  state.counters["period_mm"] = period;
+  state.SetLabel(d.proposal ? d.proposal->equation : d.summary);
+}
+BENCHMARK(BM_DiagnoseLearn)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
 
 }  // namespace
 

@@ -9,7 +9,12 @@
 // Signal hooks (SignalFrictionN, ForceN, SensorOffsetMm) also see where the base is, how
 // fast it moves and accelerates and how long the trial has run (SampleSignals); an effect
 // that overrides one says so with UsesSignals(), and the model skips the signal paths
-// entirely when no effect does (the built-in effects use none).
+// entirely when no effect does (the built-in effects use none). The deadzone width has its
+// own signal hook (SignalBacklashWidthMm: a width that changes with the motion, e.g. a
+// guidewire that lifts off the bend wall when fast, B(v) = θ·gap·(1 + |v|/v0)), declared by
+// UsesSignalBacklash(); the model's per-sample width passes the static width
+// (BacklashWidthMm, all effects) through it in pipeline order, and with no such effect the
+// width stays one number per trial.
 // Extension: derive, override the protected Do* hooks, describe the parameters, register a
 // factory.
 // Details: docs/adding_an_effect.md#1-choose-the-physics-and-the-stage-hooks
@@ -147,6 +152,24 @@ class Effect {
                         const double* p) const {
     return DoSensorOffsetMm(tip_mm, s, c, p);
   }
+  // Whether the effect overrides SignalBacklashWidthMm (independent of UsesSignals: false,
+  // the model never calls it and the width is the static one).
+  bool UsesSignalBacklash() const { return DoUsesSignalBacklash(); }
+  // Deadzone width (mm) after this effect at one sample, from the width so far (the static
+  // width, BacklashWidthMm of every effect, then the signal hooks of the effects before this
+  // one), the friction level (N, as for BacklashWidthMm) and the sample's signals.
+  double SignalBacklashWidthMm(double width_mm, double friction_level_n, const SampleSignals& s,
+                               const EffectContext& c, const double* p) const {
+    return DoSignalBacklashWidthMm(width_mm, friction_level_n, s, c, p);
+  }
+  // Whole-trial form: width_mm[i] = SignalBacklashWidthMm(width_mm[i], friction_level_n,
+  // s.At(i)). Spans of equal length (asserted).
+  void SignalBacklashWidthsMm(double friction_level_n, const TrialSignals& s,
+                              const EffectContext& c, const double* p,
+                              std::span<double> width_mm) const {
+    assert(s.size() == width_mm.size() && s.Consistent());
+    DoSignalBacklashWidthsMm(friction_level_n, s, c, p, width_mm);
+  }
   // Whole-trial forms: out[i] += SignalFrictionN(speed_mm_s[i], s.At(i)) and
   // force_n[i] += ForceN(s.At(i)). Spans of equal length (asserted).
   void AddSignalFrictionsN(std::span<const double> speed_mm_s, const TrialSignals& s,
@@ -201,6 +224,17 @@ class Effect {
   virtual double DoSensorOffsetMm(double, const SampleSignals&, const EffectContext&,
                                   const double*) const {
     return 0.0;
+  }
+  virtual bool DoUsesSignalBacklash() const { return false; }
+  virtual double DoSignalBacklashWidthMm(double width_mm, double, const SampleSignals&,
+                                         const EffectContext&, const double*) const {
+    return width_mm;
+  }
+  virtual void DoSignalBacklashWidthsMm(double friction_level_n, const TrialSignals& s,
+                                        const EffectContext& c, const double* p,
+                                        std::span<double> width_mm) const {
+    for (std::size_t i = 0; i < width_mm.size(); ++i)
+      width_mm[i] = DoSignalBacklashWidthMm(width_mm[i], friction_level_n, s.At(i), c, p);
   }
   virtual void DoAddSignalFrictionsN(std::span<const double> speed_mm_s, const TrialSignals& s,
                                      const EffectContext& c, const double* p,

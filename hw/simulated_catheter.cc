@@ -139,7 +139,8 @@ SampleSignals SimulatedCatheter::Signals() const {
 // The slide's mechanics over one substep, with the effects' signal hooks: the extra force
 // opposes the drive like a load (it is not friction, so it does not stick), breakaway and
 // kinetic friction include the signal friction at this sample. Without signal effects the
-// extra force is 0 and the friction the model's plain values, bit for bit.
+// extra force is 0 and the friction the model's plain values, bit for bit. The deadzone
+// width, where it changes with the signals, is the one at this substep's signals too.
 void SimulatedCatheter::SubstepMechanics(double h, double applied_n) {
   PlantTruth& s = truth_;
   const double accel_per_n = kMmPerM / options_.actuator.moving_mass_kg;  // mm/s² per N
@@ -172,7 +173,9 @@ void SimulatedCatheter::SubstepMechanics(double h, double applied_n) {
   s.base_mm += h * s.base_velocity_mm_s;
   s.drive_mm = model_.DriveMm(s.base_mm, s.friction_force_n);
   const double tip_before = s.tip_mm;
-  s.tip_mm = model_.StepTip(s.tip_mm, s.drive_mm, h);
+  s.tip_mm = model_.UsesSignalBacklash()
+                 ? model_.StepTip(s.tip_mm, s.drive_mm, h, 0.5 * model_.BacklashWidthMm(signals))
+                 : model_.StepTip(s.tip_mm, s.drive_mm, h);
   RecordTip(tip_before, s.tip_mm, h);
 }
 

@@ -9,7 +9,8 @@
 // and acceleration (of the last substep): their extra force (TransmissionModel::ForceN)
 // also opposes the drive and is read by the force sensor, their signal friction adds to
 // the friction and breakaway, their sensor offset to the tip reading. The tip
-// follows the drive position through the deadzone of the model. Sensors add Gaussian
+// follows the drive position through the deadzone of the model (with a signal backlash
+// hook, of the width at the same signals, substep by substep). Sensors add Gaussian
 // noise and quantisation. Units: mm, mm/s, N, A, s. Base position 0 is mid-travel.
 //
 // State interfaces: base/position, base/velocity, actuator/current, actuator/force,

@@ -26,6 +26,10 @@ TransmissionModel::TransmissionModel(const EffectRegistry& registry,
     if (effects_[e]->UsesSignals()) signal_effects_.push_back(e);
   }
   uses_signals_ = !signal_effects_.empty();
+  for (std::size_t e = 0; e < effects_.size(); ++e) {
+    if (effects_[e]->UsesSignalBacklash()) signal_backlash_effects_.push_back(e);
+  }
+  uses_signal_backlash_ = !signal_backlash_effects_.empty();
   context_ = EffectContext::From(config_);
   Refresh();
 }
@@ -218,6 +222,27 @@ void TransmissionModel::AddSensorOffsetsMm(std::span<double> tip_mm, const Trial
   assert(s.size() == tip_mm.size() && s.Consistent());
   if (!uses_signals_) return;
   for (std::size_t i = 0; i < tip_mm.size(); ++i) tip_mm[i] += SensorOffsetMm(tip_mm[i], s.At(i));
+}
+
+double TransmissionModel::BacklashWidthMm(const SampleSignals& s) const {
+  double width = width_mm_;
+  if (!uses_signal_backlash_) return width;
+  for (const std::size_t e : signal_backlash_effects_) {
+    width = effects_[e]->SignalBacklashWidthMm(width, friction_level_n_, s, context_,
+                                               params_.data() + offsets_[e]);
+  }
+  return width > 0.0 ? width : 0.0;  // also maps NaN to 0
+}
+
+void TransmissionModel::BacklashWidthsMm(const TrialSignals& s, std::span<double> out) const {
+  assert(s.size() == out.size() && s.Consistent());
+  std::fill(out.begin(), out.end(), width_mm_);
+  if (!uses_signal_backlash_) return;
+  for (const std::size_t e : signal_backlash_effects_) {
+    effects_[e]->SignalBacklashWidthsMm(friction_level_n_, s, context_,
+                                        params_.data() + offsets_[e], out);
+  }
+  for (double& w : out) w = w > 0.0 ? w : 0.0;
 }
 
 double TransmissionModel::StepTip(double tip_mm, double drive_mm, double dt_s) const {

@@ -8,7 +8,9 @@
 // Effects with signal hooks (hw/effect.h: UsesSignals) add, per sample, friction that
 // depends on the signals, a signed extra force (ForceN) and a sensor offset; the
 // functions taking SampleSignals/TrialSignals include them, the others never call them,
-// and with no such effect the signal forms equal the plain ones.
+// and with no such effect the signal forms equal the plain ones. Effects with a signal
+// backlash hook (UsesSignalBacklash) make the deadzone width per sample:
+// BacklashWidthMm(s) and the StepTip forms taking the half-width explicitly.
 // Units: mm, s, N. Positions are along the catheter axis in the base frame.
 #pragma once
 
@@ -92,7 +94,17 @@ class TransmissionModel {
   void AddForcesN(const TrialSignals& s, std::span<double> force_n) const;
   void AddSensorOffsetsMm(std::span<double> tip_mm, const TrialSignals& s) const;
 
+  // The static deadzone width (mm): every effect's BacklashWidthMm in pipeline order.
   double BacklashWidthMm() const { return width_mm_; }
+  // Whether the width changes with the signals (an effect uses SignalBacklashWidthMm).
+  bool UsesSignalBacklash() const { return uses_signal_backlash_; }
+  // The width (mm, >= 0) at one sample: the static width through every signal-backlash
+  // effect's SignalBacklashWidthMm in pipeline order (with the friction level
+  // FrictionLevelN()), negative → 0. BacklashWidthMm() exactly without such effects.
+  double BacklashWidthMm(const SampleSignals& s) const;
+  // The same over a whole trial: out[i] = BacklashWidthMm(s.At(i)) (spans of the signals'
+  // length, asserted), one virtual call per signal-backlash effect.
+  void BacklashWidthsMm(const TrialSignals& s, std::span<double> out) const;
   double TraversalTimeConstantS() const { return tau_s_; }
   double SensorDelayS() const { return delay_s_; }
   double SensorScale() const { return scale_; }
@@ -101,14 +113,22 @@ class TransmissionModel {
   // outside it, it moves to the band edge at once or, with deadzone traversal, as a
   // first-order lag with time constant τ.
   double StepTip(double tip_mm, double drive_mm, double dt_s) const;
+  // The same with the band's half-width (mm) given: 0.5·BacklashWidthMm(s) of the sample
+  // where the width changes with the signals.
+  double StepTip(double tip_mm, double drive_mm, double dt_s, double half_width_mm) const {
+    return StepTipWithFraction(tip_mm, drive_mm, TraversalFraction(dt_s), half_width_mm);
+  }
   // The same with the traversal fraction 1 − exp(−dt/τ) precomputed by the caller
   // (TraversalFraction(dt)), for loops over uniformly sampled data.
   double TraversalFraction(double dt_s) const {
     return tau_s_ > 0.0 ? 1.0 - std::exp(-dt_s / tau_s_) : 1.0;
   }
   double StepTipWithFraction(double tip_mm, double drive_mm, double fraction) const {
-    const double half = 0.5 * width_mm_;
-    const double target = std::clamp(tip_mm, drive_mm - half, drive_mm + half);
+    return StepTipWithFraction(tip_mm, drive_mm, fraction, 0.5 * width_mm_);
+  }
+  double StepTipWithFraction(double tip_mm, double drive_mm, double fraction,
+                             double half_width_mm) const {
+    const double target = std::clamp(tip_mm, drive_mm - half_width_mm, drive_mm + half_width_mm);
     return tip_mm + (target - tip_mm) * fraction;
   }
 
@@ -129,6 +149,8 @@ class TransmissionModel {
   double scale_ = 1.0;
   bool uses_signals_ = false;
   std::vector<std::size_t> signal_effects_;  // indices of the effects that use signals
+  bool uses_signal_backlash_ = false;
+  std::vector<std::size_t> signal_backlash_effects_;  // ... that use signal backlash
 };
 
 }  // namespace echoservo::hw

@@ -4,9 +4,17 @@
 //
 // The residuals are those of the cross-validation (lab/diagnosis.h): each trial predicted
 // by parameters fitted on the other folds, (model − measurement)/noise σ, on the fit
-// samples. Variables, per sample: base_mm, tip_mm (measured), velocity_mm_s,
-// acceleration_mm_s2, force_n (measured), time_s (since the trial's start); per trial:
-// bend_deg (total bend angle), gap_mm (sheath ID − guidewire OD), tip_load_n. Friction acts
+// samples. Variables, per sample: base_mm, tip_mm (measured), tip_model_mm (the model's tip
+// reading), velocity_mm_s, acceleration_mm_s2, force_n (measured), force_model_n (the
+// model's force), time_s (since the trial's start); per trial: bend_deg (total bend angle),
+// gap_mm (sheath ID − guidewire OD), tip_load_n. A channel's own measurement is never a
+// variable of its residual (the residual is model − that measurement, so it always
+// correlates and says nothing): tip_mm is left out for the tip, force_n for the force; the
+// model's prediction of the channel stands in. Pairs "slow*fast" of a trial-level variable
+// (bend_deg, gap_mm, tip_load_n) and a sample-level one (base_mm, velocity_mm_s,
+// acceleration_mm_s2, time_s) are binned jointly (4 × 6 bins, with the direction) and
+// ranked with the single variables when they explain clearly more than either alone
+// (0.05 noise variances and 10 % of the excess): an interaction. Friction acts
 // against the motion, so a friction misfit changes sign with the direction of motion and
 // averages out along any variable taken alone: every variable is therefore binned jointly
 // with the direction of motion (moving in −, at rest below 1 mm/s, moving in +). Folds
@@ -16,6 +24,7 @@
 
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "lab/lab_dataset.h"
@@ -39,6 +48,11 @@ struct ResidualTable {
 
 // The variables, in the order of ResidualTable::names.
 const std::vector<std::string>& WhereVariables();
+// Whether `variable` is `channel`'s own measurement (never a variable of its residual).
+bool CircularFor(std::string_view channel, std::string_view variable);
+// Whether a `where` variable is a pair "slow*fast", and its two variables.
+bool IsPair(std::string_view variable);
+std::pair<std::string, std::string> SplitPair(std::string_view variable);
 
 // `held_out` holds one prediction per trial of `dataset` (full rate).
 ResidualTable BuildResidualTable(const LabDataset& dataset, const std::vector<Prediction>& held_out,
@@ -50,8 +64,8 @@ ResidualTable BuildResidualTable(const LabDataset& dataset, const std::vector<Pr
 std::vector<WhereEntry> LocateResidual(const ResidualTable& table, double tip_excess,
                                        double force_excess, const StructureOptions& options = {});
 
-// Bin of every sample for `variable` jointly with the direction of motion (exposed for the
-// discovery's screening and the report's plots).
+// Bin of every sample for `variable` (or a pair) jointly with the direction of motion
+// (exposed for the discovery's screening and the report's plots).
 std::vector<int> DirectionalBins(const ResidualTable& table, std::string_view variable, int bins);
 
 }  // namespace echoservo::lab

@@ -11,6 +11,7 @@
 #include "lab/candidate_ranking.h"
 #include "lab/catheter_where.h"
 #include "lab/effect_discovery.h"
+#include "lab/shape_learning.h"
 
 namespace echoservo::lab {
 namespace {
@@ -175,6 +176,21 @@ double TopGain(const std::vector<WhereEntry>& where, const std::string& channel)
   return 0.0;
 }
 
+// Writes the proposal's effect file into `o.propose_dir` (when set) and names it in its SPEC.
+void WriteProposal(Proposal& p, const std::vector<std::string>& model, const DiagnoseOptions& o) {
+  const std::string base = hw::FormatModelSpec(model, FitCatalog(o.fit));
+  if (o.propose_dir.empty()) {
+    p.spec = base + "+" + p.effect.name;
+    return;
+  }
+  std::filesystem::create_directories(o.propose_dir);
+  const std::filesystem::path file = o.propose_dir / (p.effect.name + ".json");
+  hw::WriteEffectFile(file, p.effect);
+  p.effect.path = file.string();
+  p.file = file.string();
+  p.spec = base + "+@" + p.file;
+}
+
 }  // namespace
 
 Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
@@ -283,17 +299,128 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
     c.evidence = text;
   }
 
-  const bool missing = !d.candidates.empty() && d.candidates.front().significant;
+  const double close_mse = o.close_ratio * o.close_ratio;
+  auto closes = [&](double tip_mse, double force_mse) {
+    return tip_mse <= close_mse && force_mse <= close_mse;
+  };
+  for (Candidate& c : d.candidates) c.closes_gap = closes(c.cv.tip_mse, c.cv.force_mse);
+  const bool significant = !d.candidates.empty() && d.candidates.front().significant;
+  bool missing = significant && d.candidates.front().closes_gap;
+  if (significant && !missing && d.candidates.front().replaces.empty()) {
+    // Two effects at once: the best candidate may close the gap together with the best
+    // significant candidate of the other channel (each then named in its own round).
+    const Candidate& best = d.candidates.front();
+    for (const Candidate& other : d.candidates) {
+      if (!other.significant || !other.replaces.empty() || other.channel == best.channel ||
+          other.effect == best.effect)
+        continue;
+      std::vector<std::string> both = model;
+      both.push_back(best.effect);
+      both.push_back(other.effect);
+      both = hw::ParseModelSpec(hw::FormatModelSpec(both), catalog);
+      if (o.fit.progress)
+        o.fit.progress("diagnose: fitting " + hw::FormatModelSpec(both) + " (two effects)");
+      const std::vector<double> start = StartingValues(best.fit, both, ds, o.fit);
+      const FitResult fit = FitModel(both, ds, o.fit, {}, &start);
+      const CrossValidation cv = CrossValidate(both, ds, o.fit, o.folds, &fit.parameters);
+      if (closes(cv.tip_mse, cv.force_mse)) {
+        missing = true;
+        d.closes_with = other.effect;
+      }
+      break;
+    }
+  }
   const bool tip_left = d.tip_excess >= o.min_excess || TopGain(d.where, "tip") >= o.min_structure;
   const bool force_left =
       d.force_excess >= o.min_excess || TopGain(d.where, "force") >= o.min_structure;
   const std::string figures = ChannelWords(d, ds, true) + ", " + ChannelWords(d, ds, false);
+  // Beyond the catalog: the discovery library, then a learnt shape and its formula, on top of
+  // `m` (fit and held-out scores with predictions given); the better proposal is kept.
+  auto propose = [&](const std::vector<std::string>& m, const FitResult& fit,
+                     const CrossValidation& cv) -> std::optional<Proposal> {
+    const ResidualTable table = BuildResidualTable(ds, cv.held_out, o.folds);
+    Diagnosis beyond;
+    beyond.model = m;
+    beyond.base = fit;
+    beyond.base_cv = cv;
+    beyond.tip_excess = cv.tip_mse - 1.0;
+    beyond.force_excess = cv.force_mse - 1.0;
+    beyond.where =
+        &m == &model ? d.where : LocateResidual(table, beyond.tip_excess, beyond.force_excess);
+    // With learning to follow, the library's term is kept on the selection of a large
+    // dataset and refitted on every trial only if it is kept.
+    std::optional<Proposal> library =
+        o.discover ? DiscoverEffect(m, ds, beyond, table, o, {}, !o.learn) : std::nullopt;
+    auto full = [&](Proposal& p) {
+      if (p.cv_trials < ds.trials.size()) RefitProposal(p, m, ds, o);
+    };
+    if (library && closes(library->cv.tip_mse, library->cv.force_mse)) full(*library);
+    std::optional<Proposal> out = library;
+    if (o.learn && !(library && library->cv_trials == ds.trials.size() &&
+                     closes(library->cv.tip_mse, library->cv.force_mse))) {
+      std::optional<Proposal> learned =
+          LearnMissingTerm(m, ds, fit, cv, table, beyond.where, o, {}, d.learning);
+      if (learned && (!library || learned->cv.tip_mse + learned->cv.force_mse <
+                                      library->cv.tip_mse + library->cv.force_mse)) {
+        out = std::move(learned);
+      } else if (library) {
+        full(*out);
+        if (learned) {
+          d.learning.proposed = "";
+          d.learning.note += "; the discovery library's term fits better and is proposed";
+        }
+      }
+    }
+    return out;
+  };
+  auto total = [](const Proposal& p) { return p.cv.tip_mse + p.cv.force_mse; };
   if (missing) {
     const Candidate& best = d.candidates.front();
     d.verdict = "missing_effect";
     d.summary = "missing effect: " + best.effect +
                 (best.replaces.empty() ? "" : " (replacing " + best.replaces + ")") + " (" +
                 best.evidence + ")";
+    if (!d.closes_with.empty())
+      d.summary += "; together with " + d.closes_with + " (next) it brings every channel within " +
+                   Num(o.close_ratio, 1) + "x the noise floor on held-out trials";
+  } else if (significant) {
+    // Significant but short of the noise floor: say how much it explains, then learn what
+    // remains on top of it.
+    const Candidate& best = d.candidates.front();
+    const bool tip = best.channel == "tip";
+    d.partial = best.effect;
+    d.partial_fraction = tip ? best.tip_explained : best.force_explained;
+    d.verdict = "unexplained";
+    d.summary = "unexplained: " + best.effect + " partly explains " + Percent(d.partial_fraction) +
+                " of the held-out " + best.channel + " excess but leaves tip " +
+                Num(std::sqrt(std::max(best.cv.tip_mse, 0.0)), 1) + "x and force " +
+                Num(std::sqrt(std::max(best.cv.force_mse, 0.0)), 1) +
+                "x the noise floor on held-out trials (" + figures + " without it)";
+    if (o.discover || o.learn) {
+      // What remains is learnt on top of the candidate, and also without it (a candidate that
+      // only partly explains may be the wrong physics absorbing part of another law); the
+      // proposal with the lower held-out residual is kept.
+      std::vector<std::string> with = model;
+      std::erase(with, best.replaces);
+      with.push_back(best.effect);
+      with = hw::ParseModelSpec(hw::FormatModelSpec(with), catalog);
+      const CrossValidation cv =
+          CrossValidate(with, ds, o.fit, o.folds, &best.fit.parameters, true);
+      std::optional<Proposal> on_top = propose(with, best.fit, cv);
+      ShapeLearning learning_on_top = std::move(d.learning);
+      std::optional<Proposal> alone = propose(model, d.base, d.base_cv);
+      const bool use_alone = alone && (!on_top || total(*alone) < total(*on_top));
+      if (!use_alone) {
+        d.proposal = std::move(on_top);
+        d.learning = std::move(learning_on_top);
+      } else {
+        d.proposal = std::move(alone);
+      }
+      d.summary += !d.proposal ? "; nothing learnt explains what remains"
+                   : use_alone
+                       ? "; what remains is better explained without it: " + d.proposal->equation
+                       : "; what remains, learnt on top of it: " + d.proposal->equation;
+    }
   } else if (tip_left || force_left) {
     d.verdict = "unexplained";
     d.summary = "unexplained: no catalog effect explains the residual; " + figures;
@@ -303,18 +430,24 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
         if (!w.empty()) d.summary += "; " + w;
       }
     }
-    if (o.discover) {
-      d.proposal = DiscoverEffect(model, ds, d, residuals, o, o.propose_dir);
+    if (o.discover || o.learn) {
+      d.proposal = propose(model, d.base, d.base_cv);
       if (d.proposal) {
         d.summary += "; proposed: " + d.proposal->equation;
       } else {
-        d.summary += "; no term of the discovery library explains it either";
+        d.summary += "; no term of the discovery library and no learnt shape explains it either";
+        if (!d.learning.note.empty()) d.summary += " (" + d.learning.note + ")";
       }
     }
   } else {
     d.verdict = "adequate";
     d.summary = "adequate: the held-out residual is at the noise floor in both channels (" +
                 figures + ") and no variable explains a significant part of it";
+  }
+  if (d.proposal) {
+    WriteProposal(*d.proposal, {d.proposal->effects.begin(), d.proposal->effects.end() - 1}, o);
+    if (!d.learning.note.empty() && !d.learning.proposed.empty())
+      d.summary += " (" + d.learning.note + ")";
   }
   d.adequate = d.verdict == "adequate";
   return d;

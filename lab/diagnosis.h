@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "hw/effect_file.h"
+#include "lab/learned_term.h"
 #include "lab/residual_breakdown.h"
 #include "lab/residual_structure.h"
 
@@ -49,6 +50,15 @@ struct DiagnoseOptions {
   int variables_per_channel = 3;      // top `where` variables screened per channel
   int refit = 3;                      // screened terms fitted through the full model, at most
   std::filesystem::path propose_dir;  // where the proposal's effect file goes ("": not written)
+  // A candidate (or proposal) closes the gap when every channel's held-out RMS is at most
+  // this multiple of the noise floor; only then is it named as *the* missing effect.
+  double close_ratio = 1.5;
+  // Learn the missing term as a shape and distil it into a formula (lab/shape_learning.h)
+  // when neither the catalog nor the discovery library closes the gap.
+  bool learn = true;
+  // A formula is proposed instead of the learnt shape when its held-out RMS in the shape's
+  // channel is within this multiple of the shape's.
+  double formula_tolerance = 1.2;
 };
 
 struct CrossValidation {
@@ -69,6 +79,8 @@ struct Candidate {
   double force_explained = 0.0;
   double score = 0.0;  // held-out residual removed, noise variances
   bool significant = false;
+  // Every channel's held-out RMS within DiagnoseOptions::close_ratio of the noise floor.
+  bool closes_gap = false;
   std::string channel;  // "tip" or "force": where it explains most
   std::string evidence;
 };
@@ -83,8 +95,9 @@ struct Proposal {
   std::vector<std::string> terms;    // library ids of the chosen terms
   FitResult fit;
   CrossValidation cv;
-  double rms_mm = 0.0;       // held-out tip RMS (mm): sqrt(cv tip mse)·noise
-  double force_rms_n = 0.0;  // held-out force RMS (N)
+  std::size_t cv_trials = 0;  // trials the held-out figures are on
+  double rms_mm = 0.0;        // held-out tip RMS (mm): sqrt(cv tip mse)·noise
+  double force_rms_n = 0.0;   // held-out force RMS (N)
 };
 
 struct Diagnosis {
@@ -100,6 +113,14 @@ struct Diagnosis {
   std::string verdict;               // "adequate" | "missing_effect" | "unexplained"
   std::string summary;               // the verdict in a sentence, with its figures
   std::optional<Proposal> proposal;  // when unexplained and a proposal was found
+  // A significant candidate that does not close the gap (not even with the best candidate
+  // of the other channel): it "partly explains" `partial_fraction` of its channel's excess,
+  // the verdict is unexplained, and what remains is learnt on top of it.
+  std::string partial;
+  double partial_fraction = 0.0;
+  // With a missing effect that closes the gap only together with another candidate: that one.
+  std::string closes_with;
+  ShapeLearning learning;  // what was learnt beyond the catalog and the library
 };
 
 Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& dataset,

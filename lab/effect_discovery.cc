@@ -55,6 +55,8 @@ struct Term {
 const std::map<std::string, std::string>& Units() {
   static const std::map<std::string, std::string> units = {{"base_mm", "mm"},
                                                            {"tip_mm", "mm"},
+                                                           {"tip_model_mm", "mm"},
+                                                           {"force_model_n", "N"},
                                                            {"velocity_mm_s", "mm/s"},
                                                            {"speed_mm_s", "mm/s"},
                                                            {"acceleration_mm_s2", "mm/s^2"},
@@ -99,7 +101,12 @@ double ShapeValue(const Term& t, double x) {
 // The terms a channel's residual along `variable` suggests.
 std::vector<Term> TermsFor(const std::string& channel, const std::string& variable) {
   std::vector<Term> out;
-  auto add = [&](const HookInfo& h, const std::string& input, Shape s, double scale = 1.0) {
+  if (IsPair(variable)) return out;  // learned as a shape (lab/shape_learning.h)
+  auto add = [&](const HookInfo& h, const std::string& input_in, Shape s, double scale = 1.0) {
+    // The hooks read the model's own tip (the delayed tip) and friction force.
+    const std::string input = input_in == "tip_model_mm"    ? "tip_mm"
+                              : input_in == "force_model_n" ? "force_n"
+                                                            : input_in;
     Term t;
     t.hook = h;
     t.variable = variable;
@@ -115,7 +122,9 @@ std::vector<Term> TermsFor(const std::string& channel, const std::string& variab
       add(kFriction, variable, Shape::kLinear);  // friction that grows with the configuration
       return out;
     }
-    if (variable == "tip_mm" || variable == "force_n") return out;
+    if (variable == "tip_mm" || variable == "force_n" || variable == "tip_model_mm" ||
+        variable == "force_model_n")
+      return out;
     const std::string speed_input = variable == "velocity_mm_s" ? "speed_mm_s" : variable;
     for (Shape s : {Shape::kLinear, Shape::kQuadratic, Shape::kBump})
       add(kFriction, speed_input, s);
@@ -129,7 +138,7 @@ std::vector<Term> TermsFor(const std::string& channel, const std::string& variab
     return out;
   }
   if (geometry) return out;  // a per-trial constant on the tip is the sensor offset
-  if (variable == "force_n") {
+  if (variable == "force_n" || variable == "force_model_n") {
     add(kDrive, variable, Shape::kLinear);
     add(kDrive, variable, Shape::kCubic);
     return out;
@@ -498,7 +507,7 @@ std::vector<Term> ScreenLibrary(const ResidualTable& table, const std::vector<Wh
 std::optional<Proposal> DiscoverEffect(const std::vector<std::string>& model, const LabDataset& ds,
                                        const Diagnosis& d, const ResidualTable& residuals,
                                        const DiagnoseOptions& o,
-                                       const std::filesystem::path& out_dir) {
+                                       const std::filesystem::path& out_dir, bool refit_all) {
   std::vector<Term> chosen;
   std::optional<Trial> best;
   std::vector<double> reference = {d.base_cv.tip_mse, d.base_cv.force_mse};
@@ -536,6 +545,13 @@ std::optional<Proposal> DiscoverEffect(const std::vector<std::string>& model, co
           trials[choice].cv.tip_mse + trials[choice].cv.force_mse)
         choice = i;
     }
+    if (subset && !refit_all) {
+      // Figures on the selection only; the caller refits what it keeps (one term).
+      if (!trials[choice].judgement.significant) break;
+      best = trials[choice];
+      chosen = best->terms;
+      break;
+    }
     if (subset) {
       if (o.fit.progress) o.fit.progress("discovery: refitting " + screened[choice].Id());
       trials[choice] =
@@ -561,6 +577,7 @@ std::optional<Proposal> DiscoverEffect(const std::vector<std::string>& model, co
   p.fit = std::move(best->fit);
   p.cv = std::move(best->cv);
   p.cv.held_out.clear();
+  p.cv_trials = subset && !refit_all ? kSelectionTrials : ds.trials.size();
   for (const Term& t : chosen) p.terms.push_back(t.Id());
   p.equation = Equation(p.effect, chosen);
   p.effect.description = "Learnt from the data by `echoservo lab diagnose`: " + p.equation + ".";

@@ -35,10 +35,13 @@ namespace echoservo::lab {
 // Proposes an effect for `model` on `dataset` given its diagnosis (base fit, held-out
 // scores and residual table). Writes the effect file into `out_dir` when it is not empty
 // (created if missing). nullopt when no term explains a significant part of the excess.
+// On a dataset larger than the selection, `refit_all` false stops at the first term and
+// leaves its figures on the selection (Proposal::cv_trials says so): the caller refits what
+// it keeps.
 std::optional<Proposal> DiscoverEffect(const std::vector<std::string>& model,
                                        const LabDataset& dataset, const Diagnosis& diagnosis,
                                        const ResidualTable& residuals,
                                        const DiagnoseOptions& options,
-                                       const std::filesystem::path& out_dir);
+                                       const std::filesystem::path& out_dir, bool refit_all = true);
 
 }  // namespace echoservo::lab

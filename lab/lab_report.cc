@@ -237,6 +237,8 @@ std::string DiagnosisHtml(const Context& c) {
   return s;
 }
 
+std::string LearningHtml(const Diagnosis& d);
+
 // The held-out residual's binned mean along `variable`, one line per direction of motion.
 svg::LinePlot WherePlot(const ResidualTable& t, const std::string& channel,
                         const std::string& variable, double noise, const char* unit) {
@@ -294,7 +296,8 @@ std::string WhereHtml(const Context& c) {
     s += Row({Esc(e.channel), "<code>" + Esc(e.variable) + "</code>",
               PercentCell(e.explained_fraction), Fix(e.gain, 2)});
     const double excess = e.channel == "tip" ? d.tip_excess : d.force_excess;
-    if (shown[e.channel] <= 2 && (excess >= 0.5 || e.gain >= 0.25))
+    // A pair's residual is shown by its learnt shape (below), not by one binned mean.
+    if (shown[e.channel] <= 2 && (excess >= 0.5 || e.gain >= 0.25) && !IsPair(e.variable))
       top.emplace_back(e.channel, e.variable);
   }
   s += "</table>";
@@ -318,8 +321,65 @@ std::string WhereHtml(const Context& c) {
          Fix(c.ds.noise.tip_mm, 4) + " mm), force RMS " + Fix(p.force_rms_n, 4) + " N (noise " +
          Fix(c.ds.noise.force_n, 4) + " N). Effect file: <code>" + Esc(p.file) +
          "</code>; use it with <code>--model " + Esc(p.spec) + "</code>.</p>";
+    s += LearningHtml(step.diagnosis);
   }
   return s + "</section>";
+}
+
+// What the ladder's last step learnt beyond the libraries: the chosen shape against its
+// variables (one line per knot of the first variable for a pair) and the formulas' Pareto
+// front with their held-out figures through the model.
+std::string LearningHtml(const Diagnosis& d) {
+  const ShapeLearning& l = d.learning;
+  if (l.empty()) return "";
+  const LearnedShape& shape = l.shapes.front();
+  std::string s = "<h3>Learnt shape</h3><p class=\"note\">" + Esc(shape.Words()) +
+                  ", fitted through the whole model with every other parameter and cross-"
+                  "validated over trials: held-out tip " +
+                  Fix(std::sqrt(std::max(shape.tip_mse, 0.0)), 2) + "&times;, force " +
+                  Fix(std::sqrt(std::max(shape.force_mse, 0.0)), 2) + "&times; the noise floor. " +
+                  Esc(l.note) + ".</p>";
+  svg::LinePlot p;
+  const auto& axes = shape.shape.axes;
+  p.title = "learnt " + shape.hook + " along " + shape.inputs.front() +
+            (axes.size() > 1 ? " and " + shape.inputs.back() : "");
+  p.x_title = axes.back().variable;
+  p.y_title = shape.hook + " (" + shape.unit + ")";
+  p.zero_line = true;
+  p.width = kHalfWidth;
+  p.height = 300;
+  const char* colors[] = {"#2c7bb6", "#d7191c", "#1a9641", "#7b3294", "#fdae61", "#636363"};
+  const std::size_t rows = axes.size() > 1 ? axes[0].knots.size() : 1;
+  const std::size_t cols = axes.back().knots.size();
+  for (std::size_t r = 0; r < rows; ++r) {
+    svg::Line line{axes.size() > 1 ? axes[0].variable + " = " + Sig(axes[0].knots[r], 3) : "shape",
+                   {},
+                   {},
+                   colors[r % 6],
+                   1.6,
+                   false,
+                   1.0};
+    for (std::size_t c = 0; c < cols; ++c) {
+      line.x.push_back(axes.back().knots[c]);
+      line.y.push_back(shape.shape.values[r * cols + c]);
+    }
+    p.lines.push_back(std::move(line));
+  }
+  s += "<div class=\"grid2\"><div>" + svg::RenderLinePlot(p) + "</div></div>";
+  if (!l.formulas.empty()) {
+    s +=
+        "<h3>Formulas (Pareto front)</h3><table>" +
+        Row({"complexity", "form", "formula", "held-out tip (x noise)", "held-out force (x noise)"},
+            "", true);
+    for (const FormulaCandidate& f : l.formulas) {
+      s += Row({std::to_string(f.formula.complexity), Esc(f.formula.form),
+                "<code>" + Esc(f.formula.words) + "</code>",
+                f.fitted ? Fix(std::sqrt(std::max(f.tip_mse, 0.0)), 2) : "&ndash;",
+                f.fitted ? Fix(std::sqrt(std::max(f.force_mse, 0.0)), 2) : "&ndash;"});
+    }
+    s += "</table>";
+  }
+  return s;
 }
 
 std::string ParameterTable(const std::string& title, const FitResult& r) {

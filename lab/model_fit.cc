@@ -3,11 +3,15 @@
 #include <ceres/ceres.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <memory>
+#include <numbers>
 #include <numeric>
 #include <stdexcept>
+
+#include "lab/smooth_shape.h"
 
 namespace echoservo::lab {
 namespace {
@@ -44,6 +48,214 @@ class TrialResidual {
   const double* fixed_;
   mutable Prediction prediction_;
 };
+
+// Second differences of a block of knot values (SmoothnessPenalty) as residuals.
+class SmoothnessResidual : public ceres::CostFunction {
+ public:
+  SmoothnessResidual(std::size_t parameters, std::size_t first, std::size_t n0, std::size_t n1,
+                     double weight)
+      : weight_(weight) {
+    auto at = [&](std::size_t i, std::size_t j) { return first + i * n1 + j; };
+    for (std::size_t j = 0; j < n1; ++j)
+      for (std::size_t i = 1; i + 1 < n0; ++i)
+        triples_.push_back({at(i - 1, j), at(i, j), at(i + 1, j)});
+    for (std::size_t i = 0; i < n0; ++i)
+      for (std::size_t j = 1; j + 1 < n1; ++j)
+        triples_.push_back({at(i, j - 1), at(i, j), at(i, j + 1)});
+    set_num_residuals(static_cast<int>(triples_.size()));
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(parameters));
+    parameters_ = parameters;
+  }
+  bool empty() const { return triples_.empty(); }
+  bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
+    const double* v = p[0];
+    for (std::size_t r = 0; r < triples_.size(); ++r) {
+      const auto& [a, b, c] = triples_[r];
+      residuals[r] = weight_ * (v[a] - 2.0 * v[b] + v[c]);
+    }
+    if (jacobians != nullptr && jacobians[0] != nullptr) {
+      std::fill(jacobians[0], jacobians[0] + triples_.size() * parameters_, 0.0);
+      for (std::size_t r = 0; r < triples_.size(); ++r) {
+        const auto& [a, b, c] = triples_[r];
+        jacobians[0][r * parameters_ + a] = weight_;
+        jacobians[0][r * parameters_ + b] = -2.0 * weight_;
+        jacobians[0][r * parameters_ + c] = weight_;
+      }
+    }
+    return true;
+  }
+
+ private:
+  struct Triple {
+    std::size_t a, b, c;
+  };
+  std::vector<Triple> triples_;
+  std::size_t parameters_ = 0;
+  double weight_;
+};
+
+// The value of a table input at sample i of a trial, when it is one of the trial's own
+// signals or its geometry; false otherwise (the model's tip, its friction force).
+bool SignalInput(const LabTrial& lt, const std::string& input, std::size_t i, double& out) {
+  const hw::Trial& tr = lt.trial;
+  if (input == "time_s")
+    out = tr.t_s[i] - tr.t_s.front();
+  else if (input == "base_mm")
+    out = tr.base_mm[i];
+  else if (input == "velocity_mm_s")
+    out = lt.velocity_mm_s[i];
+  else if (input == "speed_mm_s")
+    out = std::abs(lt.velocity_mm_s[i]);
+  else if (input == "acceleration_mm_s2")
+    out = lt.acceleration_mm_s2[i];
+  else if (input == "bend_rad")
+    out = tr.config.TotalBendRad();
+  else if (input == "bend_deg")
+    out = tr.config.TotalBendRad() * 180.0 / std::numbers::pi;
+  else if (input == "gap_mm")
+    out = tr.config.GapMm();
+  else if (input == "tip_load_n")
+    out = tr.config.tip_load_n;
+  else
+    return false;
+  return true;
+}
+
+// A local table block of one trial: where its values sit among the physical parameters and
+// each fit sample's hat functions (TabulatedBlock).
+struct LocalTable {
+  std::size_t first = 0;
+  std::size_t size = 0;
+  std::vector<std::array<std::size_t, 4>> columns;  // per fit sample
+  std::vector<std::array<double, 4>> weights;
+  std::vector<int> count;
+};
+
+// A trial's residuals with the Jacobian computed column by column by central differences
+// (as ceres::CENTRAL does), except the tip offset's (exact: 1/σ on the tip rows) and the
+// local tables' (one directional derivative each, TabulatedBlock).
+class TableTrialCost : public ceres::CostFunction {
+ public:
+  TableTrialCost(TrialResidual* functor, std::size_t np, bool fixed, std::vector<LocalTable> tables,
+                 double tip_noise)
+      : functor_(functor), np_(fixed ? 0 : np), tables_(std::move(tables)), tip_noise_(tip_noise) {
+    set_num_residuals(functor_->num_residuals());
+    if (np_ > 0) mutable_parameter_block_sizes()->push_back(static_cast<int>(np_));
+    mutable_parameter_block_sizes()->push_back(1);
+    mutable_parameter_block_sizes()->push_back(1);
+  }
+
+  bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
+    if (!(*functor_)(p, residuals)) return false;
+    if (jacobians == nullptr) return true;
+    const auto m = static_cast<std::size_t>(num_residuals());
+    std::vector<double> physical(p[0], p[0] + np_);
+    double offset = p[np_ > 0 ? 1 : 0][0];
+    double contact = p[np_ > 0 ? 2 : 1][0];
+    std::vector<double> plus(m), minus(m);
+    auto run = [&](std::vector<double>& out) {
+      std::vector<const double*> blocks;
+      if (np_ > 0) blocks.push_back(physical.data());
+      blocks.push_back(&offset);
+      blocks.push_back(&contact);
+      return (*functor_)(blocks.data(), out.data());
+    };
+    auto step = [](double x) { return x == 0.0 ? 1e-6 : 1e-6 * std::abs(x); };
+    auto central = [&](double& x, double* column, std::size_t stride) {
+      const double h = step(x);
+      const double x0 = x;
+      x = x0 + h;
+      bool ok = run(plus);
+      x = x0 - h;
+      ok = run(minus) && ok;
+      x = x0;
+      for (std::size_t r = 0; r < m; ++r) column[r * stride] = (plus[r] - minus[r]) / (2.0 * h);
+      return ok;
+    };
+    if (np_ > 0 && jacobians[0] != nullptr) {
+      double* j = jacobians[0];
+      std::vector<bool> in_table(np_, false);
+      for (const LocalTable& t : tables_)
+        for (std::size_t k = 0; k < t.size; ++k) in_table[t.first + k] = true;
+      for (std::size_t c = 0; c < np_; ++c)
+        if (!in_table[c] && !central(physical[c], j + c, np_)) return false;
+      const std::size_t samples = m / 2;
+      for (const LocalTable& t : tables_) {
+        double largest = 0.0;
+        for (std::size_t k = 0; k < t.size; ++k)
+          largest = std::max(largest, std::abs(physical[t.first + k]));
+        const double h = 1e-6 * std::max(largest, 1e-3);
+        for (std::size_t k = 0; k < t.size; ++k) physical[t.first + k] += h;
+        bool ok = run(plus);
+        for (std::size_t k = 0; k < t.size; ++k) physical[t.first + k] -= 2.0 * h;
+        ok = run(minus) && ok;
+        for (std::size_t k = 0; k < t.size; ++k) physical[t.first + k] += h;
+        if (!ok) return false;
+        for (std::size_t r = 0; r < m; ++r) {
+          double* row = j + r * np_;
+          for (std::size_t k = 0; k < t.size; ++k) row[t.first + k] = 0.0;
+          const double d = (plus[r] - minus[r]) / (2.0 * h);
+          const std::size_t s = r % samples;
+          for (int c = 0; c < t.count[s]; ++c) row[t.first + t.columns[s][c]] = d * t.weights[s][c];
+        }
+      }
+    }
+    double* jo = jacobians[np_ > 0 ? 1 : 0];
+    if (jo != nullptr)
+      for (std::size_t r = 0; r < m; ++r) jo[r] = r < m / 2 ? 1.0 / tip_noise_ : 0.0;
+    double* jc = jacobians[np_ > 0 ? 2 : 1];
+    if (jc != nullptr && !central(contact, jc, 1)) return false;
+    return true;
+  }
+
+ private:
+  std::unique_ptr<TrialResidual> functor_;
+  std::size_t np_;
+  std::vector<LocalTable> tables_;
+  double tip_noise_;
+};
+
+// Where a table block's first value sits among the model's parameters; np when the model
+// has no such block (or it does not fit).
+std::size_t FirstParameter(const hw::TransmissionModel& model, const TabulatedBlock& t) {
+  const auto& info = model.parameter_info();
+  const std::size_t np = info.size();
+  for (std::size_t i = 0; i < np; ++i) {
+    if (info[i].qualified_name != t.first) continue;
+    return i + t.size() <= np && t.size() > 0 ? i : np;
+  }
+  return np;
+}
+
+// The local table blocks of one trial (TabulatedBlock::local, every input a signal or the
+// geometry), with each fit sample's hat functions.
+std::vector<LocalTable> LocalTables(const hw::TransmissionModel& model,
+                                    const std::vector<TabulatedBlock>& blocks, const LabTrial& lt) {
+  std::vector<LocalTable> out;
+  for (const TabulatedBlock& b : blocks) {
+    if (!b.local || b.knots.size() != b.inputs.size() || b.inputs.empty()) continue;
+    const std::size_t first = FirstParameter(model, b);
+    if (first == model.parameter_info().size()) continue;
+    std::vector<ShapeAxis> axes;
+    for (std::size_t a = 0; a < b.inputs.size(); ++a) axes.push_back({b.inputs[a], b.knots[a]});
+    LocalTable t;
+    t.first = first;
+    t.size = b.size();
+    bool ok = true;
+    for (std::size_t i : lt.fit_index) {
+      double x[2] = {0.0, 0.0};
+      for (std::size_t a = 0; a < b.inputs.size(); ++a)
+        ok = SignalInput(lt, b.inputs[a], i, x[a]) && ok;
+      std::array<std::size_t, 4> c{};
+      std::array<double, 4> w{};
+      t.count.push_back(ShapeBasis(axes, x, c.data(), w.data()));
+      t.columns.push_back(c);
+      t.weights.push_back(w);
+    }
+    if (ok) out.push_back(std::move(t));
+  }
+  return out;
+}
 
 class ProgressCallback : public ceres::IterationCallback {
  public:
@@ -109,19 +321,24 @@ FitResult Run(const std::vector<std::string>& effects, const LabDataset& ds,
     offsets[k] = mean / static_cast<double>(lt.trial.size());
     auto* functor =
         new TrialResidual(std::move(model), &lt, ds.noise, fix_physical ? physical : nullptr);
-    auto* cost = new ceres::DynamicNumericDiffCostFunction<TrialResidual, ceres::CENTRAL>(
-        functor, ceres::TAKE_OWNERSHIP);
     std::vector<double*> blocks;
-    if (np > 0 && !fix_physical) {
-      cost->AddParameterBlock(static_cast<int>(np));
-      blocks.push_back(physical);
-    }
-    cost->AddParameterBlock(1);
-    cost->AddParameterBlock(1);
+    if (np > 0 && !fix_physical) blocks.push_back(physical);
     blocks.push_back(&offsets[k]);
     blocks.push_back(&contacts[k]);
-    cost->SetNumResiduals(functor->num_residuals());
-    problem.AddResidualBlock(cost, nullptr, blocks);
+    std::vector<LocalTable> local = LocalTables(prototype, options.tables, lt);
+    if (!local.empty() && !fix_physical) {
+      problem.AddResidualBlock(
+          new TableTrialCost(functor, np, fix_physical, std::move(local), ds.noise.tip_mm), nullptr,
+          blocks);
+    } else {
+      auto* cost = new ceres::DynamicNumericDiffCostFunction<TrialResidual, ceres::CENTRAL>(
+          functor, ceres::TAKE_OWNERSHIP);
+      if (np > 0 && !fix_physical) cost->AddParameterBlock(static_cast<int>(np));
+      cost->AddParameterBlock(1);
+      cost->AddParameterBlock(1);
+      cost->SetNumResiduals(functor->num_residuals());
+      problem.AddResidualBlock(cost, nullptr, blocks);
+    }
     problem.SetParameterLowerBound(&contacts[k], 0, -1.0);
     problem.SetParameterUpperBound(&contacts[k], 0, 1.0);
     if (!has_width) problem.SetParameterBlockConstant(&contacts[k]);
@@ -132,6 +349,20 @@ FitResult Run(const std::vector<std::string>& effects, const LabDataset& ds,
       result.parameters[i] = std::clamp(result.parameters[i], s.lower, s.upper);
       problem.SetParameterLowerBound(physical, static_cast<int>(i), s.lower);
       problem.SetParameterUpperBound(physical, static_cast<int>(i), s.upper);
+    }
+    double fit_samples = 0.0;
+    for (std::size_t k : subset) fit_samples += static_cast<double>(ds.trials[k].fit_index.size());
+    for (const TabulatedBlock& pen : options.tables) {
+      const std::size_t first = FirstParameter(prototype, pen);
+      if (first == np || pen.lambda <= 0.0) continue;
+      const std::size_t n1 = pen.knots.size() > 1 ? pen.knots[1].size() : 1;
+      auto* cost = new SmoothnessResidual(np, first, pen.knots[0].size(), n1,
+                                          std::sqrt(pen.lambda * fit_samples) / pen.scale);
+      if (cost->empty()) {
+        delete cost;
+        continue;
+      }
+      problem.AddResidualBlock(cost, nullptr, physical);
     }
   }
 
@@ -225,6 +456,12 @@ FitResult Run(const std::vector<std::string>& effects, const LabDataset& ds,
 }
 
 }  // namespace
+
+std::size_t TabulatedBlock::size() const {
+  std::size_t n = knots.empty() ? 0 : 1;
+  for (const auto& k : knots) n *= k.size();
+  return n;
+}
 
 FitResult FitModel(const std::vector<std::string>& effects, const LabDataset& dataset,
                    const FitOptions& options, const std::vector<std::size_t>& subset,

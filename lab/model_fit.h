@@ -56,12 +56,37 @@ struct FitResult {
   double seconds = 0.0;
 };
 
+// A tabulated term among the physical parameters (a learned shape, lab/shape_learning.h):
+// the n0·n1 consecutive parameters starting at the one named `first` ("<effect>.<name>")
+// are its knot values, row-major (axis 0 slowest), over the hook inputs `inputs` at
+// `knots` (hw/effect_file.h, "tables").
+// Smoothness: the fit adds the residuals √(lambda·m)·Δ²v / scale for every second
+// difference Δ²v along each axis, m being the number of fit samples of the trials fitted,
+// so that lambda means the same on any subset (lab/smooth_shape.h's convention; scale: the
+// channel's noise σ in the values' unit).
+// Speed: the hook is linear in the knot values and, for a friction magnitude, a signed
+// force or a tip-sensor offset along the trial's own signals, acts on each sample's
+// prediction alone; the knot values' Jacobian is then d_i·φ_k(x_i), with d_i the
+// prediction's derivative with respect to the hook at sample i (one central difference of
+// all knot values at once, the hat functions summing to one) and φ_k the hat functions:
+// 2 predictions per trial instead of 2 per knot. `local` says that this holds.
+struct TabulatedBlock {
+  std::string first;
+  std::vector<std::string> inputs;         // 1 or 2 hook inputs (signals or geometry)
+  std::vector<std::vector<double>> knots;  // one strictly increasing array per input
+  double lambda = 0.0;
+  double scale = 1.0;
+  bool local = false;
+  std::size_t size() const;
+};
+
 struct FitOptions {
   int max_iterations = 30;
   int threads = 2;
   // Called with a progress line (for fits longer than a second).
   std::function<void(const std::string&)> progress;
   const hw::EffectRegistry* registry = nullptr;  // null: built-in catalog
+  std::vector<TabulatedBlock> tables;            // only for parameters the model has
 };
 
 // Fits `effects` to the trials in `subset` (all when empty). `initial` (optional) gives

@@ -28,8 +28,14 @@ void PredictTrial(const hw::TransmissionModel& model, const LabTrial& lt,
   // trial (one call per effect; the tip buffer holds the speeds, then the drives).
   for (std::size_t i = 0; i < n; ++i) tip[i] = std::abs(lt.velocity_mm_s[i]);
   const bool signals = model.UsesSignals();
-  std::vector<double> time_s, extra_n;  // signal path only
+  const bool signal_width = model.UsesSignalBacklash();
+  std::vector<double> time_s, extra_n;  // signal paths only
   hw::TrialSignals sig;
+  if (signals || signal_width) {
+    time_s.resize(n);
+    for (std::size_t i = 0; i < n; ++i) time_s[i] = tr.t_s[i] - tr.t_s[0];
+    sig = {time_s, tr.base_mm, lt.velocity_mm_s, lt.acceleration_mm_s2};
+  }
   if (!signals) {
     model.FrictionMagnitudesN(tip, out.force_n);
     const double breakaway = model.FrictionLevelN();
@@ -44,9 +50,6 @@ void PredictTrial(const hw::TransmissionModel& model, const LabTrial& lt,
     // Signal effects: friction and breakaway per sample, and the signed extra force, which
     // the force sensor reads on top of friction; the friction band applies to the force
     // left after it. The drive sees the friction alone.
-    time_s.resize(n);
-    for (std::size_t i = 0; i < n; ++i) time_s[i] = tr.t_s[i] - tr.t_s[0];
-    sig = {time_s, tr.base_mm, lt.velocity_mm_s, lt.acceleration_mm_s2};
     model.FrictionMagnitudesN(tip, sig, out.force_n);
     extra_n.assign(n, 0.0);
     model.AddForcesN(sig, extra_n);
@@ -74,20 +77,30 @@ void PredictTrial(const hw::TransmissionModel& model, const LabTrial& lt,
     for (std::size_t i = 0; i < n; ++i) out.force_n[i] += extra_n[i];
   }
 
+  // The deadzone: one width for the trial, or, with a signal backlash effect, the width at
+  // each sample's signals (the step into sample i uses sample i's, the initial contact
+  // state sample 0's).
+  std::vector<double> width;  // signal backlash only
+  if (signal_width) {
+    width.resize(n);
+    model.BacklashWidthsMm(sig, width);
+  }
   const double half = 0.5 * model.BacklashWidthMm();
   double last_dt = -1.0;
   double fraction = 1.0;
   for (std::size_t i = 0; i < n; ++i) {
     const double drive = tip[i];
     if (i == 0) {
-      tip[0] = drive + std::clamp(nuisance.contact, -1.0, 1.0) * half;
+      tip[0] =
+          drive + std::clamp(nuisance.contact, -1.0, 1.0) * (signal_width ? 0.5 * width[0] : half);
     } else {
       const double dt = tr.t_s[i] - tr.t_s[i - 1];
       if (dt != last_dt) {  // uniformly sampled trials compute the exponential once
         fraction = model.TraversalFraction(dt);
         last_dt = dt;
       }
-      tip[i] = model.StepTipWithFraction(tip[i - 1], drive, fraction);
+      tip[i] = signal_width ? model.StepTipWithFraction(tip[i - 1], drive, fraction, 0.5 * width[i])
+                            : model.StepTipWithFraction(tip[i - 1], drive, fraction);
     }
   }
 

@@ -14,9 +14,17 @@
 // Where: the held-out residuals explained by a binned mean of time_s, cardiac_phase,
 // heart_rate_bpm (local rate, lab/motion_noise.h) and cardiac_phase_x_time (8 phase × 4
 // slow-time bins), ranked by gain. Discovery (unexplained only): forward selection of at
-// most 3 library terms (lab/motion_terms.h), each refitted jointly with the model and kept
-// while it lowers the held-out mean square by ≥ min_discovery_gain; the result is written as
-// an effect file and refitted from that file for its held-out RMS.
+// most 3 library terms (lab/motion_terms.h), each refitted jointly with the model from
+// several starts (periods from the residual's spectrum, the step's moment from its largest
+// jump, a rate swing from the beats' local phase), the best start cross-validated (a
+// beat_timing term's knots restarted at 0 in every fold) and kept while it lowers the
+// held-out mean square by ≥ min_discovery_gain; the result is written as an effect file
+// (defaults: the fitted values) and refitted from that file for its held-out RMS (a
+// beat_timing term's knots with the penalty it was selected with).
+// Learned shapes (unexplained only): the held-out residual (measured − model, mm) learnt as
+// a smooth function (lab/smooth_shape.h, λ by the same time-block folds) of time_s,
+// cardiac_phase_rad, heart_rate_bpm and the pair cardiac_phase_rad × time_s; the best is
+// distilled into closed forms (lab/formula_search.h) whose Pareto front is reported.
 // Units: t in s, position in mm, scores in noise variances.
 // Details: docs/model_lab.md#motion-diagnosis-labmotion_diagnosish
 #pragma once
@@ -26,9 +34,11 @@
 #include <vector>
 
 #include "lab/candidate_ranking.h"
+#include "lab/formula_search.h"
 #include "lab/motion_model.h"
 #include "lab/motion_noise.h"
 #include "lab/residual_structure.h"
+#include "lab/smooth_shape.h"
 
 namespace echoservo::lab {
 
@@ -58,6 +68,7 @@ struct MotionDiagnoseOptions {
   bool discover = true;
   int max_terms = 3;
   double min_discovery_gain = 0.05;  // held-out mean square a term must remove
+  bool learn_shapes = true;          // unexplained: learned shapes and their formulas
   // Folder of the proposed term file; empty: "<trace stem>_proposal" beside trace.source.
   std::string propose_dir;
 };
@@ -83,10 +94,22 @@ struct MotionProposal {
   std::vector<std::string> terms;  // library terms chosen, in order
   std::string spec;                // SPEC with the file, e.g. heartbeat:2+@dir/term.json
   std::string file;
-  std::string equation;  // in words, with units
-  MotionFit fit;         // of `spec`, refitted from the file
-  double cv_mse = 0.0;   // held-out, noise variances
-  double rms_mm = 0.0;   // held-out position RMS
+  std::string equation;      // in words, with units
+  MotionFit fit;             // of `spec`, refitted from the file
+  double cv_mse = 0.0;       // held-out, noise variances
+  double rms_mm = 0.0;       // held-out position RMS
+  double noise_ratio = 0.0;  // rms_mm / the noise floor
+};
+
+// The held-out residual (measured − model, mm) learnt as a smooth function of one variable
+// or of the pair (cardiac_phase_rad, time_s).
+struct LearnedMotionShape {
+  std::string where;                   // the `where` entry it belongs to, e.g. "time_s"
+  std::vector<std::string> variables;  // time_s | cardiac_phase_rad | heart_rate_bpm, or the pair
+  std::vector<std::string> units;      // s, rad, bpm
+  SmoothShape shape;                   // knots, values (mm), λ; its gains and mses in mm²
+  double held_out_mse = 0.0;           // model + shape, held out, noise variances
+  double gain = 0.0;                   // held-out mean square it removes, noise variances
 };
 
 struct MotionCandidate {
@@ -114,6 +137,10 @@ struct MotionDiagnosis {
   std::string verdict;                     // "adequate" | "missing_effect" | "unexplained"
   std::string summary;                     // the verdict in words
   std::optional<MotionProposal> proposal;  // unexplained, when discovery found a term
+  std::vector<LearnedMotionShape> shapes;  // unexplained: lowest held-out mse first
+  // unexplained: the Pareto front (held-out error against complexity) of formulas
+  // distilling shapes.front() (target: the shape's values, held_out_mse in mm²).
+  std::vector<Formula> formulas;
 };
 
 // Held-out mean square (noise variances) of `spec` over time-block folds.

@@ -9,6 +9,7 @@
 #include <numbers>
 #include <numeric>
 #include <stdexcept>
+#include <type_traits>
 
 #include "estimation/harmonic_fit.h"
 
@@ -55,53 +56,16 @@ bool HasFileTerms(const MotionModelSpec& s) {
 }
 
 template <typename T>
-T PhaseAt(const Layout& l, const T* p, double tau) {
-  T phase = kTwoPi * p[l.rate] * tau;
-  if (l.drift >= 0) phase += kTwoPi * 0.5 * p[l.drift] * tau * tau;
-  return phase;
-}
-
-// The heartbeat model and its library terms (file terms are added by FileTerms).
-template <typename T>
-T ModelAt(const Layout& l, const std::vector<MotionTerm>& terms, const T* p, double tau,
-          double time_s) {
-  const T phase = PhaseAt(l, p, tau);
-  using std::cos;
-  using std::sin;
-  const T c1 = cos(phase);
-  const T s1 = sin(phase);
-  T ck = c1;
-  T sk = s1;
-  T x = p[l.offset];
-  for (int k = 0; k < l.harmonics; ++k) {
-    x += p[l.harm + 2 * k] * ck + p[l.harm + 2 * k + 1] * sk;
-    const T next = ck * c1 - sk * s1;
-    sk = sk * c1 + ck * s1;
-    ck = next;
-  }
-  if (l.resp >= 0) {
-    const T r = kTwoPi * p[l.resp + 2] * tau;
-    x += p[l.resp] * cos(r) + p[l.resp + 1] * sin(r);
-  }
-  for (std::size_t j = 0; j < terms.size(); ++j) {
-    const T* q = p + l.term[j];
-    switch (terms[j].kind) {
-      case MotionTermKind::kFile:
-        break;
-      case MotionTermKind::kBaselineLinear:
-        x += q[0] * time_s;
-        break;
-      case MotionTermKind::kBaselineQuadratic:
-        x += q[0] * (time_s * time_s);
-        break;
-      case MotionTermKind::kAmplitudeGrowth: {
-        const T kp = static_cast<double>(terms[j].harmonic) * phase;
-        x += (q[0] * cos(kp) + q[1] * sin(kp)) * time_s;
-        break;
-      }
-    }
-  }
-  return x;
+T MotionLogistic(const T& z) {
+  using std::exp;
+  // Saturated (within 1e-15) with exactly zero derivatives: a step's moment that no fitted
+  // sample sees (a held-out block) stays where it started instead of following the
+  // Jacobi-scaled crumbs of its tails.
+  if (z > 35.0) return T(1.0);
+  if (z < -35.0) return T(0.0);
+  if (z >= 0.0) return 1.0 / (1.0 + exp(-z));
+  const T e = exp(z);
+  return e / (1.0 + e);
 }
 
 // The file terms of a spec, each with its own parser (one FileTerms per fit and thread).
@@ -115,15 +79,21 @@ class FileTerms {
     }
   }
   bool empty() const { return index_.empty(); }
-  double At(const double* p, double tau, double time_s) const {
-    if (index_.empty()) return 0.0;
-    const Layout& l = layout_;
-    double phase = std::fmod(PhaseAt(l, p, tau), kTwoPi);
-    if (phase < 0.0) phase += kTwoPi;
-    const double rate = p[l.rate] + (l.drift >= 0 ? p[l.drift] * tau : 0.0);
+  double Phase(const double* p, double time_s) const {
+    double phase = 0.0;
+    for (std::size_t i = 0; i < index_.size(); ++i) {
+      if (evaluators_[i].has_phase())
+        phase += evaluators_[i].Phase(time_s, p + layout_.term[index_[i]]);
+    }
+    return phase;
+  }
+  double Position(const double* p, double time_s, double phase, double rate,
+                  double heartbeat) const {
     double x = 0.0;
-    for (std::size_t i = 0; i < index_.size(); ++i)
-      x += evaluators_[i](time_s, phase, rate, p + l.term[index_[i]]);
+    for (std::size_t i = 0; i < index_.size(); ++i) {
+      if (evaluators_[i].has_position())
+        x += evaluators_[i](time_s, phase, rate, heartbeat, p + layout_.term[index_[i]]);
+    }
     return x;
   }
 
@@ -132,6 +102,121 @@ class FileTerms {
   std::vector<std::size_t> index_;
   std::vector<MotionTermEvaluator> evaluators_;
 };
+
+double WrapMotionPhase(double phase) {
+  phase = std::fmod(phase, kTwoPi);
+  return phase < 0.0 ? phase + kTwoPi : phase;
+}
+
+// The heartbeat's phase: the constant rate (+ drift) and the library phase terms.
+template <typename T>
+T PhaseAt(const Layout& l, const std::vector<MotionTerm>& terms, const T* p, double tau,
+          double time_s) {
+  using std::cos;
+  using std::sin;
+  T phase = kTwoPi * p[l.rate] * tau;
+  if (l.drift >= 0) phase += kTwoPi * 0.5 * p[l.drift] * tau * tau;
+  for (std::size_t j = 0; j < terms.size(); ++j) {
+    const T* q = p + l.term[j];
+    if (terms[j].kind == MotionTermKind::kRateModulation) {
+      const T w = kTwoPi * time_s / q[2];
+      phase += q[2] * (q[0] * sin(w) - q[1] * cos(w));
+    } else if (terms[j].kind == MotionTermKind::kBeatTiming) {
+      const auto n = static_cast<int>(terms[j].parameters.size());
+      const double u = time_s / terms[j].knot_spacing_s;
+      const int k = std::clamp(static_cast<int>(std::floor(u)), 0, std::max(n - 2, 0));
+      const double f = std::clamp(u - k, 0.0, 1.0);
+      phase += n == 1 ? q[0] : q[k] * (1.0 - f) + q[k + 1] * f;
+    }
+  }
+  return phase;
+}
+
+// The harmonics' sum at `phase` (without the offset).
+template <typename T>
+T MotionHarmonicSum(const Layout& l, const T* p, const T& phase) {
+  using std::cos;
+  using std::sin;
+  const T c1 = cos(phase);
+  const T s1 = sin(phase);
+  T ck = c1;
+  T sk = s1;
+  T h = T(0.0);
+  for (int k = 0; k < l.harmonics; ++k) {
+    h += p[l.harm + 2 * k] * ck + p[l.harm + 2 * k + 1] * sk;
+    const T next = ck * c1 - sk * s1;
+    sk = sk * c1 + ck * s1;
+    ck = next;
+  }
+  return h;
+}
+
+// The phase at a sample with the file terms' phase_rad (double only).
+double MotionSamplePhase(const Layout& l, const std::vector<MotionTerm>& terms,
+                         const FileTerms* files, const double* p, double tau, double time_s) {
+  double phase = PhaseAt(l, terms, p, tau, time_s);
+  if (files != nullptr) phase += files->Phase(p, time_s);
+  return phase;
+}
+
+// The heartbeat model, its library terms and (double only) its file terms.
+template <typename T>
+T ModelAt(const Layout& l, const std::vector<MotionTerm>& terms, const T* p, double tau,
+          double time_s, const FileTerms* files = nullptr) {
+  using std::cos;
+  using std::sin;
+  (void)files;
+  T phase = PhaseAt(l, terms, p, tau, time_s);
+  if constexpr (std::is_same_v<T, double>) {
+    if (files != nullptr) phase += files->Phase(p, time_s);
+  }
+  const T h = MotionHarmonicSum(l, p, phase);
+  T x = p[l.offset] + h;
+  if (l.resp >= 0) {
+    const T r = kTwoPi * p[l.resp + 2] * tau;
+    x += p[l.resp] * cos(r) + p[l.resp + 1] * sin(r);
+  }
+  for (std::size_t j = 0; j < terms.size(); ++j) {
+    const T* q = p + l.term[j];
+    switch (terms[j].kind) {
+      case MotionTermKind::kFile:
+      case MotionTermKind::kRateModulation:
+      case MotionTermKind::kBeatTiming:
+        break;
+      case MotionTermKind::kBaselineLinear:
+        x += q[0] * time_s;
+        break;
+      case MotionTermKind::kBaselineQuadratic:
+        x += q[0] * (time_s * time_s);
+        break;
+      case MotionTermKind::kAmplitudeGrowth: {
+        const T kp = static_cast<double>(terms[j].harmonic) * phase;
+        x += (q[0] * cos(kp) + q[1] * sin(kp)) * time_s;
+        break;
+      }
+      case MotionTermKind::kBaselineStep:
+        x += q[0] * MotionLogistic((time_s - q[1]) / q[2]);
+        break;
+      case MotionTermKind::kBaselineSine: {
+        const T w = kTwoPi * time_s / q[2];
+        x += q[0] * cos(w) + q[1] * sin(w);
+        break;
+      }
+      case MotionTermKind::kAmplitudeModulation: {
+        const T w = kTwoPi * time_s / q[2];
+        x += h * (q[0] * cos(w) + q[1] * sin(w));
+        break;
+      }
+    }
+  }
+  if constexpr (std::is_same_v<T, double>) {
+    if (files != nullptr && !files->empty()) {
+      const double rate = p[l.rate] + (l.drift >= 0 ? p[l.drift] * tau : 0.0);
+      x += files->Position(p, time_s, WrapMotionPhase(phase), rate, h);
+    }
+  }
+  return x;
+}
 
 double MiddleTime(const estimation::MotionTrace& t) { return 0.5 * (t.t_s.front() + t.t_s.back()); }
 
@@ -165,11 +250,43 @@ struct NumericResiduals {
       const std::size_t s = base.index[i];
       const double tau = trace.t_s[s] - base.t_mid;
       const double time = trace.t_s[s] - trace.t_s.front();
-      const double x =
-          ModelAt(base.layout, *base.terms, p[0], tau, time) + files->At(p[0], tau, time);
+      const double x = ModelAt(base.layout, *base.terms, p[0], tau, time, files.get());
       r[i] = (x - trace.position_mm[s]) / base.sigma;
       if (!std::isfinite(r[i])) return false;
     }
+    return true;
+  }
+};
+
+// A term's knot penalty (beat_timing): the knot values' second differences and (weakly) the values,
+// in σ.
+struct BeatTimingPenalty {
+  int first = 0;
+  int knots = 0;
+  double weight = 0.0;
+  int count() const { return std::max(knots - 2, 0) + knots; }
+  template <typename T>
+  bool operator()(T const* const* p, T* r) const {
+    const T* q = p[0] + first;
+    int i = 0;
+    for (int k = 1; k + 1 < knots; ++k) r[i++] = weight * (q[k - 1] - 2.0 * q[k] + q[k + 1]);
+    for (int k = 0; k < knots; ++k) r[i++] = 0.05 * weight * q[k];
+    return true;
+  }
+};
+
+// A weak pull of every bounded term parameter towards where the fit started: one σ per
+// bound width, negligible wherever the samples determine the parameter (a step's moment has
+// an sd of hundredths of a second against a width of the trace). It keeps put what no fitted
+// sample sees (a step whose jump lies in a held-out block), as a parameter without any
+// gradient stays, instead of letting it wander on the Jacobi-scaled crumbs of a tail.
+struct TermAnchor {
+  std::vector<int> index;
+  std::vector<double> start;
+  std::vector<double> scale;
+  template <typename T>
+  bool operator()(T const* const* p, T* r) const {
+    for (std::size_t i = 0; i < index.size(); ++i) r[i] = (p[0][index[i]] - start[i]) * scale[i];
     return true;
   }
 };
@@ -186,7 +303,7 @@ std::vector<double> Predict(const MotionModelSpec& spec, const std::vector<doubl
   for (std::size_t i : index) {
     const double tau = trace.t_s[i] - t_mid;
     const double time = trace.t_s[i] - trace.t_s.front();
-    out.push_back(ModelAt(l, spec.terms, p.data(), tau, time) + files.At(p.data(), tau, time));
+    out.push_back(ModelAt(l, spec.terms, p.data(), tau, time, &files));
   }
   return out;
 }
@@ -254,7 +371,53 @@ void Solve(const MotionModelSpec& spec, const estimation::MotionTrace& trace,
   cost->SetNumResiduals(static_cast<int>(index.size()));
   ceres::Problem local;
   ceres::Problem& problem = keep != nullptr ? *keep : local;
+  // Starting values inside the bounds (Ceres refuses infeasible ones).
+  const auto bound = [&](int at, double lower, double upper) {
+    auto& v = p[static_cast<std::size_t>(at)];
+    if (std::isfinite(lower)) v = std::max(v, lower);
+    if (std::isfinite(upper)) v = std::min(v, upper);
+  };
+  bound(l.rate, kMinRateHz, kMaxRateHz);
+  if (l.drift >= 0) bound(l.drift, -0.1, 0.1);
+  if (l.resp >= 0) bound(l.resp + 2, kMinRespirationHz, kMaxRespirationHz);
+  for (std::size_t j = 0; j < spec.terms.size(); ++j) {
+    const MotionTerm& t = spec.terms[j];
+    for (std::size_t q = 0; q < t.parameters.size(); ++q)
+      bound(l.term[j] + static_cast<int>(q), t.lower[q], t.upper[q]);
+  }
   problem.AddResidualBlock(cost, nullptr, p.data());
+  for (std::size_t j = 0; j < spec.terms.size(); ++j) {
+    const MotionTerm& t = spec.terms[j];
+    if (!(t.penalty > 0.0) || t.penalty_knots == 0 ||
+        t.penalty_first + t.penalty_knots > t.parameters.size())
+      continue;
+    const BeatTimingPenalty penalty{l.term[j] + static_cast<int>(t.penalty_first),
+                                    static_cast<int>(t.penalty_knots), t.penalty};
+    auto* pc = new ceres::DynamicAutoDiffCostFunction<BeatTimingPenalty, 8>(
+        new BeatTimingPenalty(penalty));
+    pc->AddParameterBlock(l.size);
+    pc->SetNumResiduals(penalty.count());
+    problem.AddResidualBlock(pc, nullptr, p.data());
+  }
+  auto anchor = std::make_unique<TermAnchor>();
+  for (std::size_t j = 0; j < spec.terms.size(); ++j) {
+    const MotionTerm& t = spec.terms[j];
+    for (std::size_t q = 0; q < t.parameters.size(); ++q) {
+      const double width = t.upper[q] - t.lower[q];
+      if (!std::isfinite(width) || !(width > 0.0)) continue;
+      const int at = l.term[j] + static_cast<int>(q);
+      anchor->index.push_back(at);
+      anchor->start.push_back(p[static_cast<std::size_t>(at)]);
+      anchor->scale.push_back(1.0 / width);
+    }
+  }
+  if (!anchor->index.empty()) {
+    const auto count = static_cast<int>(anchor->index.size());
+    auto* ac = new ceres::DynamicAutoDiffCostFunction<TermAnchor, 8>(anchor.release());
+    ac->AddParameterBlock(l.size);
+    ac->SetNumResiduals(count);
+    problem.AddResidualBlock(ac, nullptr, p.data());
+  }
   problem.SetParameterLowerBound(p.data(), l.rate, kMinRateHz);
   problem.SetParameterUpperBound(p.data(), l.rate, kMaxRateHz);
   for (std::size_t j = 0; j < spec.terms.size(); ++j) {
@@ -463,10 +626,13 @@ MotionFit FitMotionModel(const MotionModelSpec& spec, const estimation::MotionTr
   }
   const double t_mid = MiddleTime(trace);
   fit.prediction_mm = Predict(spec, p, trace, All(trace, {}));
+  const FileTerms files(l, spec);
   double ss = 0.0;
   for (std::size_t i = 0; i < trace.size(); ++i) {
-    double phase = std::fmod(PhaseAt(l, p.data(), trace.t_s[i] - t_mid), kTwoPi);
-    fit.phase_rad.push_back(phase < 0.0 ? phase + kTwoPi : phase);
+    const double phase = MotionSamplePhase(l, spec.terms, &files, p.data(), trace.t_s[i] - t_mid,
+                                           trace.t_s[i] - trace.t_s.front());
+    fit.phase_rad.push_back(WrapMotionPhase(phase));
+    fit.heartbeat_mm.push_back(MotionHarmonicSum(l, p.data(), phase));
     ss += std::pow(fit.prediction_mm[i] - trace.position_mm[i], 2);
   }
   fit.rms_mm = std::sqrt(ss / static_cast<double>(trace.size()));

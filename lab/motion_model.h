@@ -3,8 +3,9 @@
 //
 // SPEC: "heartbeat:N" (offset + N harmonics of a constant heart rate) plus "+effect" terms
 // of the motion catalog: respiration, rate_drift, harmonic, and "+@path/term.json" terms
-// defined in effect files (lab/motion_terms.h; their value is added to the position, their
-// parameters fitted with the rest; the path may not contain '+'). Fitted by Ceres,
+// defined in effect files (lab/motion_terms.h; their position_mm is added to the position,
+// their phase_rad to the heartbeat's phase, their parameters fitted with the rest; the path
+// may not contain '+'). Fitted by Ceres,
 // residuals in units of the noise σ, started from a rate search (estimation/harmonic_fit.h);
 // automatic derivatives, central differences when a file term is present; standard
 // deviations from ceres::Covariance. Units: s, Hz, mm, rad.
@@ -48,8 +49,9 @@ struct MotionFit {
   std::vector<ParameterEstimate> estimates;  // term parameters as "<term>.<parameter>"
   std::vector<double> prediction_mm;         // at every sample of the trace
   std::vector<double> phase_rad;             // cardiac phase at every sample, wrapped to [0, 2π)
-  double rms_mm = 0.0;                       // over the whole trace
-  double mse_norm = 0.0;                     // over the fitted subset, noise variances
+  std::vector<double> heartbeat_mm;  // the harmonics' sum (no offset) at every sample's phase
+  double rms_mm = 0.0;               // over the whole trace
+  double mse_norm = 0.0;             // over the fitted subset, noise variances
   double seconds = 0.0;
 };
 

@@ -347,6 +347,7 @@ nlohmann::json DiagnosisJson(const lab::Diagnosis& d, const lab::LabDataset& ds,
          {"score", c.score},
          {"significant", c.significant},
          {"channel", c.channel},
+         {"closes_gap", c.closes_gap},
          {"params", ParamsJson(c.fit)},
          {"evidence", c.evidence}});
   }
@@ -363,7 +364,14 @@ nlohmann::json DiagnosisJson(const lab::Diagnosis& d, const lab::LabDataset& ds,
                       {"noise", {{"tip_mm", ds.noise.tip_mm}, {"force_n", ds.noise.force_n}}},
                       {"excess", {{"tip", d.tip_excess}, {"force", d.force_excess}}},
                       {"where", WhereJson(d.where)},
-                      {"candidates", candidates}};
+                      {"candidates", candidates},
+                      {"partly_explained_by",
+                       d.partial.empty() ? nlohmann::json(nullptr) : nlohmann::json(d.partial)},
+                      {"partly_explained_fraction",
+                       d.partial.empty() ? nlohmann::json(nullptr) : NullIfNan(d.partial_fraction)},
+                      {"closes_with", d.closes_with.empty() ? nlohmann::json(nullptr)
+                                                            : nlohmann::json(d.closes_with)},
+                      {"learning", LearningJson(d.learning)}};
   if (d.proposal) {
     const lab::Proposal& p = *d.proposal;
     j["proposal"] = {{"spec", p.spec},
@@ -418,6 +426,7 @@ void RunDiagnose(const LabFlags& f) {
                 : d.verdict == "missing_effect" ? "MISSING EFFECT"
                                                 : "UNEXPLAINED")
             << ": " << d.summary << "\n";
+  PrintLearning(d.learning, std::cout);
   if (d.verdict == "missing_effect") {
     std::vector<std::string> next = effects;
     std::erase(next, d.candidates.front().replaces);

@@ -45,6 +45,38 @@ nlohmann::json MotionNoiseJson(const lab::MotionNoise& n) {
           {"local_fit_mm", Nullable(n.local_fit_mm)}};
 }
 
+// Learned shapes of the held-out residual (knots, values in mm) and the Pareto front of
+// the formulas distilling the best one.
+nlohmann::json MotionShapesJson(const lab::MotionDiagnosis& d) {
+  nlohmann::json shapes = nlohmann::json::array();
+  for (const auto& s : d.shapes) {
+    nlohmann::json knots = nlohmann::json::array();
+    for (const auto& a : s.shape.axes) knots.push_back(a.knots);
+    shapes.push_back({{"where", s.where},
+                      {"variables", s.variables},
+                      {"units", s.units},
+                      {"knots", knots},
+                      {"values_mm", s.shape.values},
+                      {"lambda", s.shape.lambda},
+                      {"cv_mse_noise", s.held_out_mse},
+                      {"gain_noise_var", s.gain}});
+  }
+  nlohmann::json front = nlohmann::json::array();
+  for (const auto& f : d.formulas) {
+    nlohmann::json constants = nlohmann::json::array();
+    for (const auto& c : f.constants)
+      constants.push_back({{"name", c.name}, {"unit", c.unit}, {"value", c.value}});
+    front.push_back({{"form", f.form},
+                     {"complexity", f.complexity},
+                     {"expression", f.expression},
+                     {"constants", constants},
+                     {"offset", f.offset},
+                     {"words", f.words},
+                     {"held_out_mse_mm2", f.held_out_mse}});
+  }
+  return {{"shapes", shapes}, {"pareto_front", front}};
+}
+
 void PrintMotionWhere(const std::vector<lab::WhereEntry>& where, double excess) {
   std::cout << "\nwhere the held-out residual lies (excess " << Fixed(excess, 2)
             << " noise variances):\n";
@@ -151,8 +183,10 @@ void RunMotionDiagnose(const MotionLabFlags& f, const std::string& propose_dir) 
                        {"terms", d.proposal->terms},
                        {"rms_mm", d.proposal->rms_mm},
                        {"cv_mse_noise", d.proposal->cv_mse},
+                       {"noise_ratio", d.proposal->noise_ratio},
                        {"params", ParamsJson(d.proposal->fit)}};
     }
+    if (!d.shapes.empty()) j["learned"] = MotionShapesJson(d);
     std::cout << j.dump(2) << "\n";
     return;
   }
