@@ -150,6 +150,9 @@ std::vector<WhereEntry> LocateResidual(const ResidualTable& t, double tip_excess
     std::sort(distinct.begin(), distinct.end());
     distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
     if (distinct.size() < 2) continue;
+    // The best pair of each trial-level variable per channel (its pairs with the sample-level
+    // variables largely repeat one another).
+    std::map<std::string, WhereEntry> best;
     for (const std::string& fast : PairSampleVariables()) {
       const std::string name = slow + "*" + fast;
       const std::vector<int> bins = DirectionalBins(t, name, o.bins);
@@ -157,10 +160,12 @@ std::vector<WhereEntry> LocateResidual(const ResidualTable& t, double tip_excess
         if (CircularFor(c.name, fast)) continue;
         const double gain = ExplainedByBins(*c.r, bins, t.fold, o);
         const double alone = std::max(single[{c.name, slow}], single[{c.name, fast}]);
-        if (gain > alone + std::max(kPairMargin, kPairExcessShare * c.excess))
-          out.push_back(entry(c, name, gain));
+        if (gain <= alone + std::max(kPairMargin, kPairExcessShare * c.excess)) continue;
+        const auto it = best.find(c.name);
+        if (it == best.end() || gain > it->second.gain) best[c.name] = entry(c, name, gain);
       }
     }
+    for (const auto& [channel, e] : best) out.push_back(e);
   }
   RankWhere(out);
   return out;

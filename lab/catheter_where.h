@@ -14,7 +14,8 @@
 // (bend_deg, gap_mm, tip_load_n) and a sample-level one (base_mm, velocity_mm_s,
 // acceleration_mm_s2, time_s) are binned jointly (4 × 6 bins, with the direction) and
 // ranked with the single variables when they explain clearly more than either alone
-// (0.05 noise variances and 10 % of the excess): an interaction. Friction acts
+// (0.05 noise variances and 10 % of the excess): an interaction; one pair, the best, per
+// trial-level variable and channel. Friction acts
 // against the motion, so a friction misfit changes sign with the direction of motion and
 // averages out along any variable taken alone: every variable is therefore binned jointly
 // with the direction of motion (moving in −, at rest below 1 mm/s, moving in +). Folds

@@ -177,18 +177,27 @@ double TopGain(const std::vector<WhereEntry>& where, const std::string& channel)
 }
 
 // Writes the proposal's effect file into `o.propose_dir` (when set) and names it in its SPEC.
-void WriteProposal(Proposal& p, const std::vector<std::string>& model, const DiagnoseOptions& o) {
-  const std::string base = hw::FormatModelSpec(model, FitCatalog(o.fit));
-  if (o.propose_dir.empty()) {
-    p.spec = base + "+" + p.effect.name;
-    return;
-  }
-  std::filesystem::create_directories(o.propose_dir);
-  const std::filesystem::path file = o.propose_dir / (p.effect.name + ".json");
-  hw::WriteEffectFile(file, p.effect);
-  p.effect.path = file.string();
-  p.file = file.string();
-  p.spec = base + "+@" + p.file;
+void WriteProposal(Proposal& p, const DiagnoseOptions& o) {
+  // The model without the proposed effects (the catalog's and the user's effects only).
+  std::vector<std::string> model = p.effects;
+  std::erase(model, p.effect.name);
+  for (const hw::EffectFileSpec& e : p.earlier) std::erase(model, e.name);
+  std::string spec = hw::FormatModelSpec(model, FitCatalog(o.fit));
+  auto write = [&](hw::EffectFileSpec& e) {
+    if (o.propose_dir.empty()) {
+      spec += "+" + e.name;
+      return std::string();
+    }
+    std::filesystem::create_directories(o.propose_dir);
+    const std::filesystem::path file = o.propose_dir / (e.name + ".json");
+    hw::WriteEffectFile(file, e);
+    e.path = file.string();
+    spec += "+@" + e.path;
+    return e.path;
+  };
+  for (hw::EffectFileSpec& e : p.earlier) write(e);
+  p.file = write(p.effect);
+  p.spec = spec;
 }
 
 }  // namespace
@@ -359,7 +368,7 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
     if (o.learn && !(library && library->cv_trials == ds.trials.size() &&
                      closes(library->cv.tip_mse, library->cv.force_mse))) {
       std::optional<Proposal> learned =
-          LearnMissingTerm(m, ds, fit, cv, table, beyond.where, o, {}, d.learning);
+          LearnMissingTerm(m, ds, fit, cv, table, beyond.where, o, d.learning);
       if (learned && (!library || learned->cv.tip_mse + learned->cv.force_mse <
                                       library->cv.tip_mse + library->cv.force_mse)) {
         out = std::move(learned);
@@ -369,6 +378,35 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
           d.learning.proposed = "";
           d.learning.note += "; the discovery library's term fits better and is proposed";
         }
+      }
+    }
+    // A second term, learnt on top of the first, while a channel keeps more than the noise
+    // allows (two effects the data hold at once).
+    if (o.learn && out && !closes(out->cv.tip_mse, out->cv.force_mse)) {
+      hw::EffectRegistry registry = FitCatalog(o.fit);
+      hw::RegisterEffectSpec(registry, out->effect);
+      DiagnoseOptions o2 = o;
+      o2.fit.registry = &registry;
+      const std::vector<std::string>& m2 = out->effects;
+      if (o.fit.progress) o.fit.progress("learning: a second term on top of " + out->effect.name);
+      const CrossValidation cv2 =
+          CrossValidate(m2, ds, o2.fit, o.folds, &out->fit.parameters, true);
+      const ResidualTable table2 = BuildResidualTable(ds, cv2.held_out, o.folds);
+      const std::vector<WhereEntry> where2 =
+          LocateResidual(table2, cv2.tip_mse - 1.0, cv2.force_mse - 1.0);
+      ShapeLearning learning2;
+      std::optional<Proposal> second =
+          LearnMissingTerm(m2, ds, out->fit, cv2, table2, where2, o2, learning2);
+      if (second &&
+          second->cv.tip_mse + second->cv.force_mse < out->cv.tip_mse + out->cv.force_mse - 0.05) {
+        second->earlier = out->earlier;
+        second->earlier.push_back(out->effect);
+        second->equation = out->equation + "; then " + second->equation;
+        second->terms.insert(second->terms.begin(), out->terms.begin(), out->terms.end());
+        d.learning.note += "; a second term was learnt on top of it: " + learning2.note;
+        for (LearnedShape& l : learning2.shapes) d.learning.shapes.push_back(std::move(l));
+        for (FormulaCandidate& f : learning2.formulas) d.learning.formulas.push_back(std::move(f));
+        out = std::move(second);
       }
     }
     return out;
@@ -409,7 +447,9 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
       std::optional<Proposal> on_top = propose(with, best.fit, cv);
       ShapeLearning learning_on_top = std::move(d.learning);
       std::optional<Proposal> alone = propose(model, d.base, d.base_cv);
-      const bool use_alone = alone && (!on_top || total(*alone) < total(*on_top));
+      // Without the candidate is preferred unless on top of it is clearly better (fewer
+      // effects for the same held-out figures: 0.05 noise variances).
+      const bool use_alone = alone && (!on_top || total(*alone) <= total(*on_top) + 0.05);
       if (!use_alone) {
         d.proposal = std::move(on_top);
         d.learning = std::move(learning_on_top);
@@ -445,7 +485,7 @@ Diagnosis Diagnose(const std::vector<std::string>& model, const LabDataset& ds,
                 figures + ") and no variable explains a significant part of it";
   }
   if (d.proposal) {
-    WriteProposal(*d.proposal, {d.proposal->effects.begin(), d.proposal->effects.end() - 1}, o);
+    WriteProposal(*d.proposal, o);
     if (!d.learning.note.empty() && !d.learning.proposed.empty())
       d.summary += " (" + d.learning.note + ")";
   }

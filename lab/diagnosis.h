@@ -59,6 +59,9 @@ struct DiagnoseOptions {
   // A formula is proposed instead of the learnt shape when its held-out RMS in the shape's
   // channel is within this multiple of the shape's.
   double formula_tolerance = 1.2;
+  // The variables (and pairs "slow*fast") a shape is learnt along; empty: the top `where`
+  // variables and the trial-level pairs. Checked by CheckLearnVariables.
+  std::vector<std::string> learn_along;
 };
 
 struct CrossValidation {
@@ -96,8 +99,11 @@ struct Proposal {
   FitResult fit;
   CrossValidation cv;
   std::size_t cv_trials = 0;  // trials the held-out figures are on
-  double rms_mm = 0.0;        // held-out tip RMS (mm): sqrt(cv tip mse)·noise
-  double force_rms_n = 0.0;   // held-out force RMS (N)
+  // Terms learnt in earlier rounds (a second effect learnt on top of the first), in the
+  // model before `effect`; written beside it.
+  std::vector<hw::EffectFileSpec> earlier;
+  double rms_mm = 0.0;       // held-out tip RMS (mm): sqrt(cv tip mse)·noise
+  double force_rms_n = 0.0;  // held-out force RMS (N)
 };
 
 struct Diagnosis {

@@ -290,15 +290,18 @@ std::string WhereHtml(const Context& c) {
                   " noise variances.</p><table>" +
                   Row({"channel", "variable", "excess explained", "gain (noise var)"}, "", true, 2);
   std::vector<std::pair<std::string, std::string>> top;
-  std::map<std::string, int> shown;
+  std::map<std::string, int> shown, plotted;
   for (const WhereEntry& e : d.where) {
     if (shown[e.channel]++ >= 4) continue;
     s += Row({Esc(e.channel), "<code>" + Esc(e.variable) + "</code>",
               PercentCell(e.explained_fraction), Fix(e.gain, 2)});
     const double excess = e.channel == "tip" ? d.tip_excess : d.force_excess;
-    // A pair's residual is shown by its learnt shape (below), not by one binned mean.
-    if (shown[e.channel] <= 2 && (excess >= 0.5 || e.gain >= 0.25) && !IsPair(e.variable))
+    // The two best single variables are plotted; a pair's residual is shown by its learnt
+    // shape (below), not by one binned mean.
+    if (plotted[e.channel] < 2 && (excess >= 0.5 || e.gain >= 0.25) && !IsPair(e.variable)) {
       top.emplace_back(e.channel, e.variable);
+      ++plotted[e.channel];
+    }
   }
   s += "</table>";
   if (!top.empty()) {

@@ -768,6 +768,22 @@ MotionDiagnosis DiagnoseMotion(const MotionModelSpec& spec, const estimation::Mo
   d.held_out_rms_mm = std::sqrt(held.mse) * d.noise_mm;
   d.breakdown = ComputeMotionBreakdown(trace, d.base);
   d.where = MotionWhere(trace, d.base, held, d.noise, o.block_s);
+  // Learned shapes interpolate between time blocks where a binned mean cannot (a held-out
+  // block's slow-time bin has no training data): where the smooth shape along a `where`
+  // variable carries over to held-out blocks better, its gain is that variable's (a heart
+  // rate swinging every 12 s shows along cardiac_phase_x_time only this way).
+  std::vector<std::vector<double>> shape_inputs;
+  if (o.learn_shapes && d.excess >= o.rule.min_excess) {
+    d.shapes = motion_discovery::LearnShapes(trace, d.base, held, d.noise, &shape_inputs);
+    for (const LearnedMotionShape& shape : d.shapes) {
+      for (WhereEntry& e : d.where) {
+        if (e.variable != shape.where || !(shape.gain > e.gain)) continue;
+        e.gain = shape.gain;
+        e.explained_fraction = d.excess >= 0.05 ? std::clamp(e.gain / d.excess, 0.0, 1.0) : 0.0;
+      }
+    }
+    RankWhere(d.where);
+  }
   const std::vector<std::string> names = MissingMotionEffects(spec);
   d.candidates.resize(names.size());
   ForEachInParallel(names.size(), o.threads, [&](std::size_t i) {
@@ -825,11 +841,11 @@ MotionDiagnosis DiagnoseMotion(const MotionModelSpec& spec, const estimation::Mo
                        : "; no library term removes it";
     }
     if (o.learn_shapes) {
-      std::vector<std::vector<double>> inputs;
-      d.shapes = motion_discovery::LearnShapes(trace, d.base, held, d.noise, &inputs);
+      if (d.shapes.empty())
+        d.shapes = motion_discovery::LearnShapes(trace, d.base, held, d.noise, &shape_inputs);
       if (!d.shapes.empty() && d.shapes.front().gain > 0.0) {
         const LearnedMotionShape& best = d.shapes.front();
-        d.formulas = motion_discovery::DistilShape(best, inputs, held.fold);
+        d.formulas = motion_discovery::DistilShape(best, shape_inputs, held.fold);
         d.summary += "; learned shape along " + best.where + ": held-out RMS " +
                      FixedText(std::sqrt(std::max(best.held_out_mse, 0.0)) * d.noise_mm, 4) + " mm";
         const auto most = std::min_element(

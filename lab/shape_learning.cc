@@ -66,6 +66,10 @@ std::string InputFor(const std::string& hook, const std::string& variable) {
       return variable;
     return "";
   }
+  if (hook == "friction_scale") {
+    if (variable == "base_mm" || variable == "time_s") return variable;
+    return "";
+  }
   if (hook == "sensor_offset_mm") {
     if (variable == "tip_model_mm") return "tip_mm";
     if (variable == "velocity_mm_s" || variable == "base_mm" || variable == "time_s" ||
@@ -94,6 +98,8 @@ std::vector<Choice> ChoicesFor(const WhereEntry& e) {
   if (e.channel == "force") {
     hooks = {"friction_n"};
     if (!geometry_only) hooks.push_back("force_n");
+    // Friction that changes as a whole (every trial's in proportion to its own level).
+    if (!geometry_only && vars.size() == 1) hooks.push_back("friction_scale");
   } else {
     if (geometry_only) return {};  // a per-trial constant on the tip is the sensor offset
     hooks = {"sensor_offset_mm", "drive_offset_mm"};
@@ -199,7 +205,13 @@ Screened ScreenChoice(const Choice& c, const ResidualTable& t, const LabDataset&
   }
   s.target.resize(r.size());
   for (std::size_t i = 0; i < r.size(); ++i) s.target[i] = -r[i];
-  if (c.friction || c.moving_only) {
+  if (c.hook == "friction_scale") {
+    // A scale multiplies the friction the model already has (its force where moving).
+    const std::vector<double>& f = t.Variable("force_model_n");
+    s.multiplier.resize(r.size());
+    for (std::size_t i = 0; i < r.size(); ++i)
+      s.multiplier[i] = t.direction[i] != 0 ? t.direction[i] * std::abs(f[i]) : 0.0;
+  } else if (c.friction || c.moving_only) {
     s.multiplier.resize(r.size());
     for (std::size_t i = 0; i < r.size(); ++i)
       s.multiplier[i] = c.friction ? t.direction[i] : (t.direction[i] != 0 ? 1.0 : 0.0);
@@ -227,6 +239,8 @@ std::string HookWords(const std::string& hook) {
   if (hook == "friction_n") return "friction magnitude (N, against the motion)";
   if (hook == "force_n") return "force (N)";
   if (hook == "sensor_offset_mm") return "tip reading (mm)";
+  if (hook == "backlash_width_mm") return "backlash width (mm)";
+  if (hook == "friction_scale") return "friction scale (1, every friction times 1 + the term)";
   return "drive position (mm)";
 }
 
@@ -248,14 +262,15 @@ hw::EffectFileSpec ShapeSpec(const Choice& c, const SmoothShape& shape, double s
   table.name = kTable;
   table.inputs = c.inputs;
   for (const ShapeAxis& a : shape.axes) table.knots.push_back(a.knots);
-  table.unit = c.channel == "force" ? "N" : "mm";
+  const bool scale = c.hook == "friction_scale";
+  table.unit = scale ? "1" : c.channel == "force" ? "N" : "mm";
   double largest = 0.0;
   for (double v : shape.values) {
     table.values.push_back(v * sigma);
     largest = std::max(largest, std::abs(v * sigma));
   }
-  const double bound = std::max(10.0 * largest, 20.0 * sigma);
-  table.lower = -bound;
+  const double bound = std::max(10.0 * largest, scale ? 1.0 : 20.0 * sigma);
+  table.lower = scale ? std::max(-1.0, -bound) : -bound;
   table.upper = bound;
   if (c.friction) {
     // A friction magnitude cannot be negative: the shape's level is carried by Coulomb.
@@ -267,7 +282,7 @@ hw::EffectFileSpec ShapeSpec(const Choice& c, const SmoothShape& shape, double s
   table.doc = "learnt along " + c.variables.front() +
               (c.variables.size() > 1 ? " x " + c.variables.back() : "");
   spec.tables.push_back(table);
-  spec.expressions.emplace_back(c.hook, kTable);
+  spec.expressions.emplace_back(c.hook, scale ? std::string("1+") + kTable : std::string(kTable));
   return spec;
 }
 
@@ -335,10 +350,48 @@ std::vector<TabulatedBlock> TablesFor(const hw::EffectFileSpec& spec, const std:
     b.lambda = lambda;
     b.scale = sigma;
     // These hooks act on each sample's prediction alone (lab/model_fit.h).
-    b.local = hook == "friction_n" || hook == "force_n" || hook == "sensor_offset_mm";
+    b.local = hook == "friction_n" || hook == "force_n" || hook == "sensor_offset_mm" ||
+              hook == "friction_scale";
     out.push_back(b);
   }
   return out;
+}
+
+bool HasBacklash(const std::vector<std::string>& model, const hw::EffectRegistry& catalog) {
+  for (const std::string& e : model) {
+    const auto effect = catalog.Create(e);
+    if (effect != nullptr && effect->stage() == hw::EffectStage::kBacklash) return true;
+  }
+  return false;
+}
+
+constexpr const char* kBacklashSpeed = "formula_backlash_speed";
+
+hw::EffectFileSpec BacklashSpeedSpec() {
+  hw::EffectFileSpec spec;
+  spec.name = kBacklashSpeed;
+  spec.description =
+      "The deadzone widens with the base speed (the guidewire lifts off the bend's wall when "
+      "fast): width x (1 + k x speed).";
+  spec.signature = "a tip lag growing with speed, in proportion to each trial's backlash width";
+  spec.parameters.push_back(
+      {"k_per_mm_s", "1/(mm/s)", 0.01, -0.005, 1.0, "relative widening per mm/s of speed"});
+  spec.expressions.emplace_back("backlash_width_mm", "width_mm*(1+k_per_mm_s*speed_mm_s)");
+  return spec;
+}
+
+Formula BacklashFormula(const hw::EffectFileSpec& spec) {
+  Formula f;
+  f.form = "backlash_speed";
+  f.complexity = 1;
+  f.variables = {"width_mm", "speed_mm_s"};
+  f.constants.push_back({"k_per_mm_s", "1/(mm/s)", spec.parameters.front().default_value,
+                         "relative widening per mm/s"});
+  f.expression = "width_mm*(1+k_per_mm_s*speed_mm_s)";
+  f.words = "backlash width (mm) = width_mm x (1 + " + Sig4(f.constants.front().value) +
+            " /(mm/s) x speed_mm_s)";
+  f.held_out_mse = NAN;
+  return f;
 }
 
 // Bounds for a formula's constant refitted through the model.
@@ -381,22 +434,17 @@ hw::EffectFileSpec FormulaSpec(const Choice& c, const Formula& f, const std::vec
     Bound(p, spans.empty() ? 1.0 : spans.front());
     spec.parameters.push_back(p);
   }
-  // A signed force and a drive offset keep the constant level; a tip reading has its
+  // A signed force keeps the constant level; a tip reading and a drive offset have theirs
   // absorbed by the per-trial offset; a friction magnitude gets the level that keeps it
   // positive (Coulomb friction gives up as much).
   if (c.hook == "friction_n") {
-    const double level = std::max(0.0, -lowest);
-    hw::ParameterSpec p{"level",
-                        "N",
-                        level,
-                        0.0,
-                        std::max(10.0 * level, 1.0),
-                        "constant level (traded with Coulomb friction)"};
-    spec.parameters.push_back(p);
-    expression = "(" + expression + ")+level";
-  } else if (c.hook == "force_n" || c.hook == "drive_offset_mm") {
-    const std::string unit = c.channel == "force" ? "N" : "mm";
-    hw::ParameterSpec p{"level", unit, f.offset, 0.0, 0.0, "constant level"};
+    // A fixed level (not a parameter: Coulomb friction would trade with it and leave every
+    // standard deviation undefined), 10 % above what keeps the formula positive.
+    if (lowest < 0.0) expression = "(" + expression + ")+" + Sig4(-1.1 * lowest);
+  } else if (c.hook == "friction_scale") {
+    expression = "1+(" + expression + ")";
+  } else if (c.hook == "force_n") {
+    hw::ParameterSpec p{"level", "N", f.offset, 0.0, 0.0, "constant level"};
     const double b = std::max(10.0 * std::abs(f.offset), 1.0);
     p.lower = -b;
     p.upper = b;
@@ -415,7 +463,7 @@ std::string FormulaEquation(const Choice& c, const Formula& f, const hw::EffectF
     words += (first ? "" : ", ") + p.name + " = " + Sig4(p.default_value) + " " + p.unit;
     first = false;
   }
-  return HookWords(c.hook) + " += " + words;
+  return HookWords(c.hook) + (c.hook == "backlash_width_mm" ? " = " : " += ") + words;
 }
 
 std::string ShapeEquation(const Choice& c, const hw::EffectFileSpec& spec) {
@@ -447,6 +495,33 @@ void RefitProposal(Proposal& p, const std::vector<std::string>& model, const Lab
   p.force_rms_n = RmsOf(p.cv.force_mse, ds.noise.force_n);
 }
 
+void CheckLearnVariables(const std::vector<std::string>& names, const std::string& option) {
+  const std::vector<std::string> singles = {"base_mm",  "velocity_mm_s", "acceleration_mm_s2",
+                                            "time_s",   "tip_model_mm",  "force_model_n",
+                                            "bend_deg", "gap_mm",        "tip_load_n"};
+  const std::vector<std::string> slow = {"bend_deg", "gap_mm", "tip_load_n"};
+  const std::vector<std::string> fast = {"base_mm", "velocity_mm_s", "acceleration_mm_s2",
+                                         "time_s"};
+  auto in = [](const std::vector<std::string>& v, const std::string& x) {
+    return std::find(v.begin(), v.end(), x) != v.end();
+  };
+  for (const std::string& name : names) {
+    bool ok = in(singles, name);
+    if (IsPair(name)) {
+      const auto [a, b] = SplitPair(name);
+      ok = in(slow, a) && in(fast, b);
+    }
+    if (ok) continue;
+    std::string list;
+    for (const std::string& v : singles) list += (list.empty() ? "" : ", ") + v;
+    throw std::invalid_argument(
+        option + ": '" + name + "' names no variable a shape can be learnt along (" + list +
+        ", or a pair SLOW*FAST of bend_deg|gap_mm|tip_load_n with "
+        "base_mm|velocity_mm_s|acceleration_mm_s2|time_s; a channel's own measurement, tip_mm "
+        "or force_n, is never one)");
+  }
+}
+
 std::string LearnedShape::Words() const {
   std::string along;
   for (std::size_t a = 0; a < inputs.size(); ++a) along += (a ? " x " : "") + inputs[a];
@@ -456,10 +531,11 @@ std::string LearnedShape::Words() const {
   return HookWords(hook) + " += shape(" + along + "), " + knots + " knots";
 }
 
-std::optional<Proposal> LearnMissingTerm(
-    const std::vector<std::string>& model, const LabDataset& ds, const FitResult& base,
-    const CrossValidation& cv, const ResidualTable& table, const std::vector<WhereEntry>& where,
-    const DiagnoseOptions& o, const std::filesystem::path& out_dir, ShapeLearning& learning) {
+std::optional<Proposal> LearnMissingTerm(const std::vector<std::string>& model,
+                                         const LabDataset& ds, const FitResult& base,
+                                         const CrossValidation& cv, const ResidualTable& table,
+                                         const std::vector<WhereEntry>& where,
+                                         const DiagnoseOptions& o, ShapeLearning& learning) {
   learning = ShapeLearning{};
   if (ds.trials.size() < kMinTrials) {
     learning.note = "learning a shape needs at least " + std::to_string(kMinTrials) +
@@ -483,6 +559,17 @@ std::optional<Proposal> LearnMissingTerm(
   };
   for (const char* channel : {"tip", "force"}) {
     const double excess = (std::string(channel) == "tip" ? cv.tip_mse : cv.force_mse) - 1.0;
+    if (!o.learn_along.empty()) {
+      // The user's variables only.
+      if (excess < o.min_excess) continue;
+      for (const std::string& v : o.learn_along) {
+        WhereEntry e;
+        e.channel = channel;
+        e.variable = v;
+        for (const Choice& c : ChoicesFor(e)) screen(c);
+      }
+      continue;
+    }
     if (excess >= o.min_excess) {
       // Interactions a binned `where` cannot see on few trials (a pair's bins hold one or two
       // trials each): every trial-level variable with 3 values or more, with the velocity
@@ -527,7 +614,29 @@ std::optional<Proposal> LearnMissingTerm(
   std::stable_sort(screened.begin(), screened.end(), [](const Screened& a, const Screened& b) {
     return a.shape.held_out_gain > b.shape.held_out_gain;
   });
-  if (screened.empty()) {
+  const bool subset = ds.trials.size() > kShapeSelectionTrials;
+  LabDataset spread;
+  if (subset) {
+    spread.noise = ds.noise;
+    for (std::size_t k = 0; k < kShapeSelectionTrials; ++k)
+      spread.trials.push_back(ds.trials[k * ds.trials.size() / kShapeSelectionTrials]);
+  }
+  const LabDataset& selection = subset ? spread : ds;
+  // A form of the grammar that acts on the model's state rather than on a residual: the
+  // deadzone widening with speed (a guidewire lifting off the bend's wall when fast). Its
+  // tip residual depends on the trial's own width, so no shape along one variable holds it.
+  std::optional<ModelTrial> backlash;
+  if (cv.tip_mse - 1.0 >= o.min_excess && HasBacklash(model, FitCatalog(o.fit))) {
+    if (o.fit.progress) o.fit.progress("learning: fitting the backlash width along speed");
+    try {
+      backlash = FitThrough(model, BacklashSpeedSpec(), selection, base, reference, o, {}, !subset,
+                            o.threads);
+      if (!backlash->judgement.significant) backlash.reset();
+    } catch (const std::exception&) {
+      backlash.reset();
+    }
+  }
+  if (screened.empty() && !backlash) {
     learning.note = "no shape along the top variables explains the held-out residual";
     return std::nullopt;
   }
@@ -537,7 +646,7 @@ std::optional<Proposal> LearnMissingTerm(
     l.channel = s.choice.channel;
     l.variables = s.choice.variables;
     l.inputs = s.choice.inputs;
-    l.unit = s.choice.channel == "force" ? "N" : "mm";
+    l.unit = s.choice.hook == "friction_scale" ? "1" : s.choice.channel == "force" ? "N" : "mm";
     l.shape = s.shape;
     const double sigma = Sigma(ds, l.channel);
     for (double& v : l.shape.values) v *= sigma;
@@ -548,14 +657,6 @@ std::optional<Proposal> LearnMissingTerm(
   // 2. The best screened shapes through the whole model.
   const std::size_t refit =
       std::min<std::size_t>(screened.size(), std::min(kShapesFitted, std::max(1, o.refit)));
-  const bool subset = ds.trials.size() > kShapeSelectionTrials;
-  LabDataset spread;
-  if (subset) {
-    spread.noise = ds.noise;
-    for (std::size_t k = 0; k < kShapeSelectionTrials; ++k)
-      spread.trials.push_back(ds.trials[k * ds.trials.size() / kShapeSelectionTrials]);
-  }
-  const LabDataset& selection = subset ? spread : ds;
   std::vector<ModelTrial> trials(refit);
   ForEachInParallel(refit, o.threads, [&](std::size_t i) {
     const Screened& s = screened[i];
@@ -574,118 +675,143 @@ std::optional<Proposal> LearnMissingTerm(
         trials[choice].cv.tip_mse + trials[choice].cv.force_mse)
       choice = i;
   }
-  const Choice chosen = screened[choice].choice;
-  const double sigma = Sigma(ds, chosen.channel);
-  // The chosen shape first, with its values fitted through the model.
-  {
+  std::optional<ModelTrial> best_shape;
+  Choice chosen;
+  if (refit > 0) {
+    chosen = screened[choice].choice;
     LearnedShape& l = learning.shapes[choice];
-    const hw::EffectTableSpec& t = trials[choice].spec.tables.front();
-    l.shape.values = t.values;
+    l.shape.values = trials[choice].spec.tables.front().values;
     std::rotate(learning.shapes.begin(), learning.shapes.begin() + static_cast<long>(choice),
                 learning.shapes.begin() + static_cast<long>(choice) + 1);
+    if (trials[choice].judgement.significant) {
+      best_shape = std::move(trials[choice]);
+    } else {
+      learning.note = "the best learnt shape (" + learning.shapes.front().Words() +
+                      ") is not significant on held-out trials";
+    }
   }
-  ModelTrial best_shape = std::move(trials[choice]);
-  if (!best_shape.judgement.significant) {
-    learning.note = "the best learnt shape (" + learning.shapes.front().Words() +
-                    ") is not significant on held-out trials";
-    return std::nullopt;
-  }
+  if (!best_shape && !backlash) return std::nullopt;
 
-  // 3. Distillation into a formula along the data's own inputs.
-  FormulaData fd;
-  const LearnedShape& ls = learning.shapes.front();
-  std::vector<std::vector<double>> values;
-  std::vector<double> spans;
-  for (std::size_t a = 0; a < chosen.variables.size(); ++a) {
-    values.push_back(InputValues(table, chosen.variables[a], chosen.inputs[a]));
-    fd.variables.push_back({chosen.inputs[a], UnitOf(chosen.inputs[a])});
-    const auto [lo, hi] = std::minmax_element(values.back().begin(), values.back().end());
-    spans.push_back(*hi - *lo);
-  }
-  fd.inputs.resize(values.size());
-  const std::size_t n = table.size();
-  const std::size_t step = std::max<std::size_t>(1, n / kFormulaSamples);
-  for (std::size_t i = 0; i < n; i += step) {
-    if ((chosen.friction || chosen.moving_only) && table.direction[i] == 0) continue;
-    double in[2] = {values[0][i], values.size() > 1 ? values[1][i] : 0.0};
-    for (std::size_t a = 0; a < values.size(); ++a) fd.inputs[a].push_back(in[a]);
-    fd.target.push_back(ls.shape.Evaluate(in));
-    fd.fold.push_back(table.fold[i]);
-  }
-  fd.target_unit = ls.unit;
-  fd.offset = true;
-  std::vector<Formula> front;
-  try {
-    front = ParetoFront(SearchFormulas(fd));
-  } catch (const std::invalid_argument& e) {
-    learning.note = std::string("no formula search: ") + e.what();
-  }
-  std::erase_if(front, [](const Formula& f) { return f.complexity < 1; });
-  for (const Formula& f : front) learning.formulas.push_back({f, false, NAN, NAN, ""});
-  // The best few by their fit to the shape, each through the model.
-  std::vector<std::size_t> order(learning.formulas.size());
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return learning.formulas[a].formula.held_out_mse < learning.formulas[b].formula.held_out_mse;
-  });
-  if (order.size() > static_cast<std::size_t>(kFormulasFitted)) order.resize(kFormulasFitted);
-  std::vector<ModelTrial> formula_trials(order.size());
-  ForEachInParallel(order.size(), o.threads, [&](std::size_t k) {
-    const Formula& f = learning.formulas[order[k]].formula;
-    if (o.fit.progress) o.fit.progress("learning: fitting formula " + f.words);
+  // 3. Distillation of the shape into a formula along the data's own inputs.
+  struct Fitted {
+    std::size_t index;  // in learning.formulas
+    ModelTrial trial;
+    std::string channel;  // where it is compared with the shape
+  };
+  std::vector<Fitted> fitted;
+  if (best_shape) {
+    FormulaData fd;
+    const LearnedShape& ls = learning.shapes.front();
+    std::vector<std::vector<double>> values;
+    std::vector<double> spans;
+    for (std::size_t a = 0; a < chosen.variables.size(); ++a) {
+      values.push_back(InputValues(table, chosen.variables[a], chosen.inputs[a]));
+      fd.variables.push_back({chosen.inputs[a], UnitOf(chosen.inputs[a])});
+      const auto [lo, hi] = std::minmax_element(values.back().begin(), values.back().end());
+      spans.push_back(*hi - *lo);
+    }
+    fd.inputs.resize(values.size());
+    const std::size_t n = table.size();
+    const std::size_t step = std::max<std::size_t>(1, n / kFormulaSamples);
+    for (std::size_t i = 0; i < n; i += step) {
+      if ((chosen.friction || chosen.moving_only) && table.direction[i] == 0) continue;
+      double in[2] = {values[0][i], values.size() > 1 ? values[1][i] : 0.0};
+      for (std::size_t a = 0; a < values.size(); ++a) fd.inputs[a].push_back(in[a]);
+      fd.target.push_back(ls.shape.Evaluate(in));
+      fd.fold.push_back(table.fold[i]);
+    }
+    fd.target_unit = ls.unit;
+    fd.offset = true;
+    std::vector<Formula> front;
     try {
-      double lowest = std::numeric_limits<double>::infinity();
-      for (std::size_t i = 0; i < fd.target.size(); ++i) {
-        const double in[2] = {fd.inputs[0][i], fd.inputs.size() > 1 ? fd.inputs[1][i] : 0.0};
-        lowest = std::min(lowest, f.Evaluate(in));
+      front = ParetoFront(SearchFormulas(fd));
+    } catch (const std::invalid_argument& e) {
+      learning.note = std::string("no formula search: ") + e.what();
+    }
+    std::erase_if(front, [](const Formula& f) { return f.complexity < 1; });
+    for (const Formula& f : front) learning.formulas.push_back({f, false, NAN, NAN, ""});
+    // The best few by their fit to the shape, each through the model.
+    std::vector<std::size_t> order(learning.formulas.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return learning.formulas[a].formula.held_out_mse < learning.formulas[b].formula.held_out_mse;
+    });
+    if (order.size() > static_cast<std::size_t>(kFormulasFitted)) order.resize(kFormulasFitted);
+    std::vector<std::optional<ModelTrial>> formula_trials(order.size());
+    ForEachInParallel(order.size(), o.threads, [&](std::size_t k) {
+      const Formula& f = learning.formulas[order[k]].formula;
+      if (o.fit.progress) o.fit.progress("learning: fitting formula " + f.words);
+      try {
+        double lowest = std::numeric_limits<double>::infinity();
+        for (std::size_t i = 0; i < fd.target.size(); ++i) {
+          const double in[2] = {fd.inputs[0][i], fd.inputs.size() > 1 ? fd.inputs[1][i] : 0.0};
+          lowest = std::min(lowest, f.Evaluate(in));
+        }
+        formula_trials[k] = FitThrough(model, FormulaSpec(chosen, f, spans, lowest), selection,
+                                       base, reference, o, {}, !subset, 1);
+      } catch (const std::exception&) {
+        formula_trials[k].reset();  // a formula the model cannot run is not proposed
       }
-      formula_trials[k] = FitThrough(model, FormulaSpec(chosen, f, spans, lowest), selection, base,
-                                     reference, o, {}, !subset, 1);
-    } catch (const std::exception&) {
-      formula_trials[k].cv.tip_mse = formula_trials[k].cv.force_mse = NAN;
-    }
-  });
-  const bool tip = chosen.channel == "tip";
-  const double shape_mse = tip ? best_shape.cv.tip_mse : best_shape.cv.force_mse;
-  const ModelTrial* formula = nullptr;
-  int formula_complexity = std::numeric_limits<int>::max();
-  for (std::size_t k = 0; k < order.size(); ++k) {
-    FormulaCandidate& fc = learning.formulas[order[k]];
-    const ModelTrial& mt = formula_trials[k];
-    if (!std::isfinite(mt.cv.tip_mse)) continue;
-    fc.fitted = true;
-    fc.tip_mse = mt.cv.tip_mse;
-    fc.force_mse = mt.cv.force_mse;
-    fc.equation = FormulaEquation(chosen, fc.formula, mt.spec);
-    const double mse = tip ? mt.cv.tip_mse : mt.cv.force_mse;
-    const bool close =
-        std::sqrt(std::max(mse, 0.0)) <= o.formula_tolerance * std::sqrt(std::max(shape_mse, 0.0));
-    if (close && mt.judgement.significant && fc.formula.complexity < formula_complexity) {
-      formula = &mt;
-      formula_complexity = fc.formula.complexity;
-    }
+    });
+    for (std::size_t k = 0; k < order.size(); ++k)
+      if (formula_trials[k])
+        fitted.push_back({order[k], std::move(*formula_trials[k]), chosen.channel});
   }
+  if (backlash) {
+    learning.formulas.push_back({BacklashFormula(backlash->spec), false, NAN, NAN, ""});
+    fitted.push_back({learning.formulas.size() - 1, std::move(*backlash), "tip"});
+  }
+  auto channel_mse = [](const ModelTrial& t, const std::string& channel) {
+    return channel == "tip" ? t.cv.tip_mse : t.cv.force_mse;
+  };
+  // The simplest formula within `formula_tolerance` of the shape's held-out RMS in the channel
+  // it acts on (the better of two equally simple ones); without a shape, the best formula.
+  const Fitted* formula = nullptr;
+  for (Fitted& f : fitted) {
+    FormulaCandidate& fc = learning.formulas[f.index];
+    fc.fitted = true;
+    fc.tip_mse = f.trial.cv.tip_mse;
+    fc.force_mse = f.trial.cv.force_mse;
+    fc.equation = FormulaEquation(f.channel == "tip" && fc.formula.form == "backlash_speed"
+                                      ? Choice{"backlash_width_mm", "tip", {}, {}, false, false}
+                                      : chosen,
+                                  fc.formula, f.trial.spec);
+    if (!f.trial.judgement.significant) continue;
+    const bool close =
+        !best_shape ||
+        std::sqrt(std::max(channel_mse(f.trial, f.channel), 0.0)) <=
+            o.formula_tolerance * std::sqrt(std::max(channel_mse(*best_shape, f.channel), 0.0));
+    if (!close) continue;
+    const int complexity = fc.formula.complexity;
+    if (formula == nullptr || complexity < learning.formulas[formula->index].formula.complexity ||
+        (complexity == learning.formulas[formula->index].formula.complexity &&
+         f.trial.cv.tip_mse + f.trial.cv.force_mse <
+             formula->trial.cv.tip_mse + formula->trial.cv.force_mse))
+      formula = &f;
+  }
+  if (formula == nullptr && !best_shape) return std::nullopt;
 
   // On a dataset larger than the selection, only what is proposed is refitted and
   // cross-validated on every trial (the others' figures are the selection's).
+  const double lambda = refit > 0 ? screened[choice].shape.lambda : 0.0;
+  const ModelTrial& chosen_trial = formula != nullptr ? formula->trial : *best_shape;
   ModelTrial full;
   if (subset) {
-    const ModelTrial& chosen_trial = formula != nullptr ? *formula : best_shape;
     if (o.fit.progress)
       o.fit.progress("learning: refitting " + chosen_trial.spec.name + " on every trial");
     full = FitThrough(model, chosen_trial.spec, ds, base, reference, o,
                       formula != nullptr ? std::vector<TabulatedBlock>{}
-                                         : TablesFor(chosen_trial.spec, chosen.hook,
-                                                     screened[choice].shape.lambda, sigma),
+                                         : TablesFor(chosen_trial.spec, chosen.hook, lambda,
+                                                     Sigma(ds, chosen.channel)),
                       true, o.threads);
     if (formula != nullptr) {
-      for (FormulaCandidate& fc : learning.formulas) {
-        if (fc.fitted && fc.formula.complexity == formula_complexity) {
-          fc.tip_mse = full.cv.tip_mse;
-          fc.force_mse = full.cv.force_mse;
-          fc.equation = FormulaEquation(chosen, fc.formula, full.spec);
-        }
-      }
+      FormulaCandidate& fc = learning.formulas[formula->index];
+      fc.tip_mse = full.cv.tip_mse;
+      fc.force_mse = full.cv.force_mse;
+      fc.equation = fc.formula.form == "backlash_speed"
+                        ? FormulaEquation({"backlash_width_mm", "tip", {}, {}, false, false},
+                                          fc.formula, full.spec)
+                        : FormulaEquation(chosen, fc.formula, full.spec);
     } else {
       learning.shapes.front().tip_mse = full.cv.tip_mse;
       learning.shapes.front().force_mse = full.cv.force_mse;
@@ -699,26 +825,30 @@ std::optional<Proposal> LearnMissingTerm(
   }
 
   Proposal p;
-  const ModelTrial& pick = subset ? full : formula != nullptr ? *formula : best_shape;
+  const ModelTrial& pick = subset ? full : chosen_trial;
   p.effect = pick.spec;
   p.effects = pick.effects;
   p.fit = pick.fit;
   p.cv = pick.cv;
   p.cv.held_out.clear();
   if (formula != nullptr) {
+    const FormulaCandidate& fc = learning.formulas[formula->index];
     learning.proposed = "formula";
-    for (const FormulaCandidate& fc : learning.formulas) {
-      if (fc.fitted && fc.formula.complexity == formula_complexity) {
-        p.equation = fc.equation;
-        p.terms.push_back("formula:" + fc.formula.form + "(" + chosen.inputs.front() +
-                          (chosen.inputs.size() > 1 ? "," + chosen.inputs.back() : "") + ")");
-        break;
-      }
-    }
-    learning.note = "the formula's held-out " + chosen.channel + " RMS is within " +
-                    Sig4(o.formula_tolerance) + "x of the learnt shape's (" +
-                    Sig4(RmsOf(tip ? formula->cv.tip_mse : formula->cv.force_mse, sigma)) +
-                    " against " + Sig4(RmsOf(shape_mse, sigma)) + (tip ? " mm)" : " N)");
+    p.equation = fc.equation;
+    const std::vector<std::string>& along =
+        fc.formula.form == "backlash_speed" ? fc.formula.variables : chosen.inputs;
+    p.terms.push_back("formula:" + fc.formula.form + "(" + along.front() +
+                      (along.size() > 1 ? "," + along.back() : "") + ")");
+    const double sigma = Sigma(ds, formula->channel);
+    learning.note = best_shape
+                        ? "the formula's held-out " + formula->channel + " RMS is within " +
+                              Sig4(o.formula_tolerance) + "x of the learnt shape's (" +
+                              Sig4(RmsOf(channel_mse(formula->trial, formula->channel), sigma)) +
+                              " against " +
+                              Sig4(RmsOf(channel_mse(*best_shape, formula->channel), sigma)) +
+                              (formula->channel == "tip" ? " mm)" : " N)")
+                        : "no learnt shape is significant; a form of the grammar that acts on the "
+                          "model's state is";
   } else {
     learning.proposed = "shape";
     p.equation = ShapeEquation(chosen, pick.spec);
@@ -735,17 +865,8 @@ std::optional<Proposal> LearnMissingTerm(
   p.cv_trials = ds.trials.size();
   p.rms_mm = RmsOf(p.cv.tip_mse, ds.noise.tip_mm);
   p.force_rms_n = RmsOf(p.cv.force_mse, ds.noise.force_n);
-  const std::string base_spec = hw::FormatModelSpec(model, FitCatalog(o.fit));
-  if (!out_dir.empty()) {
-    std::filesystem::create_directories(out_dir);
-    const std::filesystem::path file = out_dir / (p.effect.name + ".json");
-    hw::WriteEffectFile(file, p.effect);
-    p.effect.path = file.string();
-    p.file = file.string();
-    p.spec = base_spec + "+@" + p.file;
-  } else {
-    p.spec = base_spec + "+" + p.effect.name;
-  }
+  // The caller writes the file and names it in the SPEC (lab/diagnosis.cc).
+  p.spec = hw::FormatModelSpec(model, FitCatalog(o.fit)) + "+" + p.effect.name;
   return p;
 }
 

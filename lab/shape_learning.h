@@ -39,12 +39,19 @@
 namespace echoservo::lab {
 
 // Learns a term for `model` (whose fit, held-out scores and held-out residual table are
-// given) and fills `learning`; returns the proposal (written into `out_dir` unless empty),
-// or nullopt when no shape is significant.
-std::optional<Proposal> LearnMissingTerm(
-    const std::vector<std::string>& model, const LabDataset& dataset, const FitResult& fit,
-    const CrossValidation& cv, const ResidualTable& residuals, const std::vector<WhereEntry>& where,
-    const DiagnoseOptions& options, const std::filesystem::path& out_dir, ShapeLearning& learning);
+// given) and fills `learning`; returns the proposal (its effect in memory: the caller
+// writes the file), or nullopt when nothing learnt is significant.
+std::optional<Proposal> LearnMissingTerm(const std::vector<std::string>& model,
+                                         const LabDataset& dataset, const FitResult& fit,
+                                         const CrossValidation& cv, const ResidualTable& residuals,
+                                         const std::vector<WhereEntry>& where,
+                                         const DiagnoseOptions& options, ShapeLearning& learning);
+
+// Throws std::invalid_argument naming `option` when a name is not a variable a shape can be
+// learnt along (a `where` variable other than a measured channel, or a pair "slow*fast" of
+// bend_deg|gap_mm|tip_load_n with base_mm|velocity_mm_s|acceleration_mm_s2|time_s), listing
+// the valid names.
+void CheckLearnVariables(const std::vector<std::string>& names, const std::string& option);
 
 // Refits a proposal (its effect file spec on top of `model`) and cross-validates it on every
 // trial of `dataset`: its fit, held-out figures and the file's default values are updated.

@@ -22,6 +22,7 @@
 #include "lab/diagnosis.h"
 #include "lab/lab_report.h"
 #include "lab/model_fit.h"
+#include "lab/shape_learning.h"
 
 namespace echoservo::apps {
 namespace {
@@ -33,9 +34,10 @@ struct LabFlags {
   bool json = false;
   int stride = 4;
   std::string residuals_dir;
-  std::string column;                   // motion traces only
-  std::string propose_dir;              // where `diagnose` writes a proposed effect file
-  std::vector<std::string> candidates;  // extra candidates: effect files (@path) or plugin effects
+  std::string column;                    // motion traces only
+  std::string propose_dir;               // where `diagnose` writes a proposed effect file
+  std::vector<std::string> learn_along;  // variables a shape is learnt along (`diagnose`)
+  std::vector<std::string> candidates;   // extra candidates: effect files (@path) or plugin effects
   CatalogFlags catalog;
 };
 
@@ -397,6 +399,7 @@ void RunDiagnose(const LabFlags& f) {
   lab::DiagnoseOptions o;
   o.fit = Options(model);
   o.propose_dir = ProposeDir(f);
+  o.learn_along = f.learn_along;
   std::vector<std::string> skipped_candidates;
   o.candidates = Candidates(f, model, skipped_candidates);
   const lab::Diagnosis d = lab::Diagnose(effects, ds, o);
@@ -555,7 +558,16 @@ void AddLabCommands(CLI::App& app) {
   diagnose->add_option("--propose-dir", dflags->propose_dir,
                        "Where a proposed effect file is written when the verdict is unexplained "
                        "(default: DATASET_proposal beside the dataset)");
-  diagnose->callback([dflags] { RunDiagnose(*dflags); });
+  diagnose
+      ->add_option("--learn-along", dflags->learn_along,
+                   "Learn the missing term along these variables only (repeatable or comma "
+                   "separated: base_mm, velocity_mm_s, time_s, ..., or a pair such as "
+                   "bend_deg*velocity_mm_s); default: where the residual lives")
+      ->delimiter(',');
+  diagnose->callback([dflags] {
+    lab::CheckLearnVariables(dflags->learn_along, "--learn-along");
+    RunDiagnose(*dflags);
+  });
   AddReportCommand(lab);
 }
 

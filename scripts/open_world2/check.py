@@ -16,13 +16,19 @@ prints one row per case: the hidden effect, the verdict (with the significant ca
 candidate when it says missing_effect), the first `where` variable of each channel with its
 explained share, the proposal's equation, the held-out RMS / noise floor per channel (the
 model's, then the proposal's; for missing_effect the significant candidate's, in the truth
-channel, follows its name), the seconds it took, and three checks:
+channel, follows its name), the seconds it took, and five checks:
 
   null   : the verdict is adequate;
   effect : the verdict is not adequate (missing_effect or unexplained);
   where  : for each truth channel, the first `where` entry names the truth's variable
            ("yes"), or another variable the truth lists for it ("alt", e.g. bend_deg for a
-           law in bend x speed; counted as a match), else "no".
+           law in bend x speed; counted as a match), else "no";
+  closes : with the proposal (unexplained) every channel's held-out RMS is within 1.5x the
+           noise floor; a named catalog effect must close the gap the same way;
+  constants: where the hidden law is in the lab's grammar (a sine along the base, a step in
+           time, a deadzone widening with speed, a jump, a swinging heart rate, an amplitude
+           modulation), the proposal's fitted constants match the truth's (periods and
+           rates within 5 %, amplitudes within 10 %, moments within 0.05 s / 0.2 s).
 
 Exit status: 0 when every check holds (or always with --report), 1 otherwise, 2 for a
 usage error. Pure Python 3 standard library.
@@ -34,7 +40,8 @@ import subprocess
 import sys
 import time
 
-DEFAULT_EXE = "/work/main/build/bin/echoservo"
+DEFAULT_EXE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "build", "bin",
+                           "echoservo")
 CHANNEL_KEYS = {  # channel -> (model held-out RMS key, proposal RMS key, noise key, unit)
     "tip": ("rms_mm", "rms_mm", "tip_mm", "mm"),
     "force": ("force_rms_n", "force_rms_n", "force_n", "N"),
@@ -167,12 +174,81 @@ def check_case(exe, data, case, timeout):
         matches = []
         for ch, var, accepted in effects:
             top = (r["where"].get(ch) or {}).get("variable")
-            m = "yes" if top == var else ("alt" if top in accepted else "no")
+            # A pair "a*b" names the truth's variable when one of its two does.
+            parts = top.split("*") if top else []
+            m = ("yes" if top == var or var in parts else
+                 "alt" if top in accepted or any(x in accepted for x in parts) else "no")
             matches.append({"channel": ch, "truth": var, "accepted": accepted, "first": top,
                             "match": m})
         r["where_match"] = matches
         r["checks"]["where_matches_truth"] = all(m["match"] != "no" for m in matches)
+        # What the lab proposes brings every channel within 1.5x the noise floor on held-out
+        # data (a named catalog effect must close the gap the same way).
+        if verdict == "unexplained":
+            closes = prop is not None and all(
+                fnum(r["rms"][ch].get("proposal_ratio")) and r["rms"][ch]["proposal_ratio"] <= 1.5
+                for ch in channels)
+        else:
+            cands = d.get("candidates") or []
+            closes = bool(cands) and bool(cands[0].get("closes_gap", True))
+        r["checks"]["proposal_closes_gap"] = closes
+        ok, found = constants_check(case, truth, prop)
+        if ok is not None:
+            r["constants"] = found
+            r["checks"]["constants_recovered"] = ok
     return r
+
+
+# Constants a proposal must recover when the hidden law is in the lab's grammar (issue 29:
+# a period or time constant within 5 %, an amplitude within 10 %): case -> [(substring of a
+# proposal parameter's name, truth, relative tolerance, absolute tolerance)]. The parameter
+# is looked up in the proposal's fitted parameters; a proposal without it fails the check
+# (the law was in the grammar and another form was proposed).
+def expected_constants(case, truth):
+    p = truth.get("parameters") or {}
+    if case == "ripple_friction":
+        r = p["ripple_friction"]
+        return [(".period", r["period_mm"], 0.05, 0.0), (".amplitude", r["a_n"] / 2.0, 0.10, 0.0)]
+    if case == "friction_step":
+        r = p["friction_step"]
+        return [(".x0", r["t0_s"], 0.0, 0.05), (".amplitude", r["delta_n"], 0.10, 0.0)]
+    if case == "friction_warmup":
+        return [(".tau", p["friction_warmup"]["tau_s"], 0.05, 0.0)]
+    if case == "bend_viscous":  # c·θ·|v| with θ in rad = (c·π/180)·bend_deg·|v|
+        return [(".c", p["bend_viscous"]["c_n_per_mm_s_rad"] * 3.141592653589793 / 180.0, 0.05, 0.0)]
+    if case == "speed_backlash":
+        return [(".k_per_mm_s", 1.0 / p["speed_backlash"]["v0_mm_s"], 0.05, 0.0)]
+    if case == "motion_jump":
+        return [("step_mm", p["jump_mm"], 0.10, 0.0), ("step_time_s", p["t_jump_s"], 0.0, 0.2)]
+    if case == "motion_rate_swing":
+        return [("rate_period_s", p["period_s"], 0.05, 0.0)]
+    if case == "motion_amplitude_mod":
+        return [("modulation_period_s", p["period_s"], 0.05, 0.0)]
+    return []
+
+
+def constants_check(case, truth, prop):
+    wanted = expected_constants(case, truth)
+    if not wanted:
+        return None, []
+    params = (prop or {}).get("params") or {}
+    found = []
+    ok = True
+    for key, value, rel, absolute in wanted:
+        names = [n for n in params if key in n]
+        if not names:
+            found.append({"parameter": key, "truth": value, "found": None})
+            ok = False
+            continue
+        got = params[names[0]]["value"]
+        if key.endswith("amplitude") or key == "step_mm":
+            got_cmp, value_cmp = abs(got), abs(value)
+        else:
+            got_cmp, value_cmp = got, value
+        good = abs(got_cmp - value_cmp) <= max(rel * abs(value_cmp), absolute)
+        found.append({"parameter": names[0], "truth": value, "found": got, "ok": good})
+        ok = ok and good
+    return ok, found
 
 
 def pct(x):
@@ -188,7 +264,7 @@ def ratio_text(e):
 def table(results):
     head = ["case", "hidden", "verdict", "first where (explained)", "proposal",
             "held-out/noise", "proposal/noise", "null->adeq", "effect->not adeq", "where=truth",
-            "s"]
+            "closes", "constants", "s"]
     rows = []
     for r in results:
         verdict = r.get("verdict") or "ERROR"
@@ -218,7 +294,8 @@ def table(results):
                                                         else " FAIL"))
         rows.append([r["case"], r.get("hidden_effect") or "none", verdict, wh or "-", eq,
                      held or "-", prop, yn("null_adequate"), yn("effect_not_adequate"),
-                     where_ok, "%.1f" % r.get("seconds", 0.0)])
+                     where_ok, yn("proposal_closes_gap"), yn("constants_recovered"),
+                     "%.1f" % r.get("seconds", 0.0)])
     widths = [max(len(h), *(len(x[i]) for x in rows)) if rows else len(h)
               for i, h in enumerate(head)]
     print("| " + " | ".join(h.ljust(w) for h, w in zip(head, widths)) + " |")
@@ -236,6 +313,10 @@ def main(argv=None):
     ap.add_argument("--report", action="store_true", help="always exit 0 (report only)")
     ap.add_argument("--json-out", help="write the per-case results as JSON here")
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per diagnose (600)")
+    ap.add_argument("--known-limit", action="append", default=[], metavar="CASE:CHECK",
+                    help="a check known to fail on a case, for a documented reason: reported "
+                         "as 'known limit', not counted as a failure; a known limit that "
+                         "holds is reported so the list can shrink (repeatable)")
     a = ap.parse_args(argv)
     if not os.path.isfile(a.echoservo):
         ap.error("no echoservo binary at %s" % a.echoservo)
@@ -263,7 +344,15 @@ def main(argv=None):
             print("%s: ERROR: %s" % (r["case"], e))
         if r.get("proposal") and r["proposal"].get("equation"):
             print("%s: proposal: %s" % (r["case"], r["proposal"]["equation"]))
-    failed = [r["case"] for r in results if not all(r["checks"].values())]
+    known = set(a.known_limit)
+    for k in sorted(known):
+        case, _, check = k.partition(":")
+        for r in results:
+            if r["case"] == case and check in r["checks"]:
+                print("%s: %s: known limit (docs/open_world_generator2.md)%s" % (
+                    case, check, "; it holds now" if r["checks"][check] else ""))
+    failed = [r["case"] for r in results
+              if not all(v or (r["case"] + ":" + k) in known for k, v in r["checks"].items())]
     print("\n%d/%d cases pass every check%s; %.1f s in all"
           % (len(results) - len(failed), len(results),
              "" if not failed else " (failing: " + ", ".join(failed) + ")", total))

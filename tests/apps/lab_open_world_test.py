@@ -15,7 +15,12 @@ check: generates every case of scripts/open_world/generate.py into a temporary f
 runs scripts/open_world/check.py on it (issue 15's judge: verdict, `where`, proposal
 against the truth; docs/open_world_generator.md).
 
-Registered with CTest as lab_open_world_tutorial and lab_open_world_check
+check2: the same with the second, independent generator scripts/open_world2/ (issue 29's
+judge: verdict, `where`, the proposal closing the gap, the law's constants recovered;
+docs/open_world_generator2.md).
+
+Registered with CTest as lab_open_world_tutorial, lab_open_world_check and
+lab_open_world2_check
 (tests/apps/CMakeLists.txt). Exit 0 on success, 1 on failure, 2 on a usage error.
 """
 import json
@@ -164,6 +169,33 @@ def check_claims(results, work):
     expect(s0["force_rms_n"] > 5 * s0["noise"]["force_n"],
            "simulated: seed force RMS %.4g is not far above the noise" % s0["force_rms_n"])
     within_noise(s1["force_rms_n"], s1["noise"]["force_n"], "simulated: seed + file")
+    # 8: beyond the library (the second generator): a shape learnt inside the model along
+    # base_mm, distilled into a sine with the truth's constants, the error at the noise floor.
+    rp = r"lab \S+ /tmp/open_world/gen2/ripple_friction "
+    d = find(results, rp + r"--model seed$")
+    expect(d["verdict"] == "unexplained", "ripple: verdict %r" % d["verdict"])
+    noise = d["noise"]["force_n"]
+    force_where = [w for w in d["where"] if w["channel"] == "force"]
+    expect(force_where and force_where[0]["variable"] == "base_mm",
+           "ripple: first force `where` is %r" % (force_where[:1],))
+    expect(all(w["variable"] != "force_n" for w in force_where),
+           "ripple: the measured force ranked for the force residual")
+    learning = d["learning"]
+    expect(learning["shapes"] and learning["shapes"][0]["hook"] == "friction_n"
+           and learning["shapes"][0]["inputs"] == ["base_mm"],
+           "ripple: learnt shape %r" % (learning["shapes"][:1],))
+    expect(len(learning["shapes"][0]["knots"][0]) == len(learning["shapes"][0]["values"]),
+           "ripple: the shape's table is not one value per knot")
+    expect(learning["proposed"] == "formula", "ripple: proposed %r" % learning["proposed"])
+    params = d["proposal"]["params"]
+    period = params["formula_base_mm.period"]["value"]
+    amplitude = abs(params["formula_base_mm.amplitude"]["value"])
+    expect(abs(period - 3.0) <= 0.05 * 3.0, "ripple: period %.4g mm, truth 3" % period)
+    expect(abs(amplitude - 0.075) <= 0.1 * 0.075, "ripple: amplitude %.4g N, truth 0.075" % amplitude)
+    within_noise(d["proposal"]["force_rms_n"], noise, "ripple: proposal held-out force RMS")
+    c = find(results, rp + r"--model seed\+@\S*formula_base_mm\.json$")
+    within_noise(c["force_rms_n"], c["noise"]["force_n"], "ripple: compare with the formula")
+    expect(d["force_rms_n"] > 3 * c["force_rms_n"], "ripple: the error did not fall")
     # Motion: unexplained along time_s, proposal and compare at the noise floor.
     mo = r"lab \S+ /tmp/open_world/motion_baseline_drift/trace\.csv "
     d = find(results, mo + r"--model heartbeat:2$")
@@ -190,8 +222,26 @@ def run_check(exe):
         shutil.rmtree(work, ignore_errors=True)
 
 
+def run_check2(exe):
+    work = tempfile.mkdtemp(prefix="echoservo_open_world2_check_")
+    try:
+        gen = os.path.join(ROOT, "scripts", "open_world2", "generate.py")
+        chk = os.path.join(ROOT, "scripts", "open_world2", "check.py")
+        p = subprocess.run([sys.executable, gen, "--out", work, "--all"],
+                           stdout=subprocess.DEVNULL)
+        expect(p.returncode == 0, "open_world2/generate.py failed (exit %d)" % p.returncode)
+        # Beat-to-beat timing drawn at random for every beat is a random process, not a law:
+        # no term fitted on other time blocks predicts a held-out block's beats
+        # (docs/open_world_generator2.md, "Known limits").
+        p = subprocess.run([sys.executable, chk, work, "--echoservo", exe,
+                            "--known-limit", "motion_beat_jitter:proposal_closes_gap"])
+        expect(p.returncode == 0, "open_world2/check.py failed (exit %d)" % p.returncode)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
 def main(argv):
-    if len(argv) != 3 or argv[1] not in ("tutorial", "check"):
+    if len(argv) != 3 or argv[1] not in ("tutorial", "check", "check2"):
         sys.stderr.write(__doc__)
         return 2
     exe = os.path.abspath(argv[2])
@@ -199,7 +249,7 @@ def main(argv):
         sys.stderr.write("no echoservo binary at %s\n" % exe)
         return 2
     try:
-        (run_tutorial if argv[1] == "tutorial" else run_check)(exe)
+        {"tutorial": run_tutorial, "check": run_check, "check2": run_check2}[argv[1]](exe)
     except Failure as e:
         print("FAIL: %s" % e, flush=True)
         return 1

@@ -24,6 +24,7 @@
 #include "hw/transmission_model.h"
 #include "lab/lab_dataset.h"
 #include "lab/model_prediction.h"
+#include "tests/hw/effect_test_util.h"
 #include "tests/hw/whole_trial_hooks.h"
 #include "tests/test_util/expect_error.h"
 
@@ -33,6 +34,7 @@ namespace {
 using ::echoservo::testing::ExpectContains;
 using ::echoservo::testing::InvalidArgumentMessage;
 using Names = std::vector<std::string>;
+using testing::SineTrial;
 
 constexpr double kTight = 1e-12;
 
@@ -67,24 +69,6 @@ class EffectFileTest : public ::testing::Test {
   std::filesystem::path dir_;
   EffectRegistry registry_ = EffectRegistry::WithBuiltinEffects();
 };
-
-// A 2 s, 1 kHz trial of a ±4 mm 0.8 Hz sine starting at t = 0.5 s (so that time_s = t − t0
-// differs from t), with a square-wave force and the tip following the base.
-lab::LabTrial SineTrial() {
-  Trial t;
-  t.name = "sine";
-  t.config = CatheterConfig::SeedEvaluation();
-  for (int i = 0; i < 2000; ++i) {
-    const double ts = 0.5 + 1e-3 * i;
-    const double w = 2.0 * std::numbers::pi * 0.8;
-    t.t_s.push_back(ts);
-    t.base_cmd_mm.push_back(4.0 * std::sin(w * ts));
-    t.base_mm.push_back(4.0 * std::sin(w * ts));
-    t.tip_mm.push_back(4.0 * std::sin(w * ts));
-    t.force_n.push_back(std::cos(w * ts) > 0 ? 0.4 : -0.4);
-  }
-  return lab::PrepareLabDataset({t}).trials.front();
-}
 
 lab::Prediction Predict(const EffectRegistry& r, const Names& effects,
                         const std::vector<std::pair<std::string, double>>& set = {}) {
@@ -127,23 +111,7 @@ TEST_F(EffectFileTest, FileViscousFrictionPredictsAsTheBuiltin) {
 
 std::vector<std::array<double, 3>> RunSine(const EffectRegistry& r, const Names& effects,
                                            bool noise) {
-  PlantOptions o;
-  o.effects = effects;
-  o.registry = &r;
-  o.sensor_noise = noise;
-  SimulatedCatheter plant(o);
-  plant.Configure();
-  plant.Activate();
-  std::vector<std::array<double, 3>> out;
-  for (int i = 0; i < 400; ++i) {
-    const double t = 1e-3 * i;
-    plant.read(t, 1e-3);
-    out.push_back({plant.state(iface::kTipPosition), plant.state(iface::kSensorForce),
-                   plant.state(iface::kBasePosition)});
-    plant.set_command(0, 3.0 * std::sin(2.0 * std::numbers::pi * 3.0 * t));
-    plant.write(t, 1e-3);
-  }
-  return out;
+  return testing::RunPlantSine(r, effects, noise);
 }
 
 TEST_F(EffectFileTest, FileViscousFrictionSimulatesAsTheBuiltin) {

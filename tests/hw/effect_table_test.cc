@@ -26,6 +26,7 @@
 #include "hw/transmission_model.h"
 #include "lab/lab_dataset.h"
 #include "lab/model_prediction.h"
+#include "tests/hw/effect_test_util.h"
 #include "tests/test_util/expect_error.h"
 
 // A namespace of its own: the test target compiles in unity batches with effect_file_test.cc.
@@ -34,6 +35,7 @@ namespace {
 
 using ::echoservo::testing::ExpectContains;
 using Names = std::vector<std::string>;
+using testing::SineTrial;
 
 constexpr double kTight = 1e-12;
 
@@ -597,22 +599,6 @@ EffectRegistry TabulatedAndExplicit() {
   return r;
 }
 
-lab::LabTrial SineTrial() {
-  Trial t;
-  t.name = "sine";
-  t.config = CatheterConfig::SeedEvaluation();
-  for (int i = 0; i < 2000; ++i) {
-    const double ts = 0.5 + 1e-3 * i;
-    const double w = 2.0 * std::numbers::pi * 0.8;
-    t.t_s.push_back(ts);
-    t.base_cmd_mm.push_back(4.0 * std::sin(w * ts));
-    t.base_mm.push_back(4.0 * std::sin(w * ts));
-    t.tip_mm.push_back(4.0 * std::sin(w * ts));
-    t.force_n.push_back(std::cos(w * ts) > 0 ? 0.4 : -0.4);
-  }
-  return lab::PrepareLabDataset({t}).trials.front();
-}
-
 TEST_F(EffectTableTest, TabulatedFrictionPredictsAsTheExplicitPiecewiseExpression) {
   const EffectRegistry r = TabulatedAndExplicit();
   const lab::LabTrial trial = SineTrial();
@@ -641,25 +627,8 @@ TEST_F(EffectTableTest, TabulatedFrictionPredictsAsTheExplicitPiecewiseExpressio
 
 TEST_F(EffectTableTest, TabulatedFrictionSimulatesAsTheExplicitPiecewiseExpression) {
   const EffectRegistry r = TabulatedAndExplicit();
-  const auto run = [&](const Names& effects) {
-    PlantOptions o;
-    o.effects = effects;
-    o.registry = &r;
-    o.sensor_noise = false;
-    SimulatedCatheter plant(o);
-    plant.Configure();
-    plant.Activate();
-    std::vector<std::array<double, 3>> out;
-    for (int i = 0; i < 400; ++i) {
-      const double t = 1e-3 * i;
-      plant.read(t, 1e-3);
-      out.push_back({plant.state(iface::kTipPosition), plant.state(iface::kSensorForce),
-                     plant.state(iface::kBasePosition)});
-      plant.set_command(0, 3.0 * std::sin(2.0 * std::numbers::pi * 3.0 * t));
-      plant.write(t, 1e-3);
-    }
-    return out;
-  };
+  const auto run = [&](const Names& effects) { return testing::RunPlantSine(r, effects, false); };
+
   const auto a = run({"coulomb_friction", "backlash", "tab_friction", "tab_spot"});
   const auto b = run({"coulomb_friction", "backlash", "explicit_friction", "explicit_spot"});
   const auto none = run({"coulomb_friction", "backlash"});

@@ -23,12 +23,14 @@
 #include "hw/transmission_model.h"
 #include "lab/lab_dataset.h"
 #include "lab/model_prediction.h"
+#include "tests/hw/effect_test_util.h"
 
 // A namespace of its own: the test target compiles in unity batches.
 namespace echoservo::hw::signal_backlash_test {
 namespace {
 
 using Names = std::vector<std::string>;
+using testing::SineTrial;
 
 constexpr double kSeedWidthMm = std::numbers::pi * 0.8;  // θ·gap of the seed evaluation
 
@@ -47,23 +49,6 @@ EffectRegistry Registry(double v0) {
   EffectRegistry r = EffectRegistry::WithBuiltinEffects();
   RegisterEffectSpec(r, Spec("lift_off", "width_mm*(1+speed_mm_s/v0_mm_s)", v0));
   return r;
-}
-
-// A 2 s, 1 kHz trial of a ±4 mm 0.8 Hz sine starting at t = 0.5 s, with a square-wave force.
-lab::LabTrial SineTrial() {
-  Trial t;
-  t.name = "sine";
-  t.config = CatheterConfig::SeedEvaluation();
-  for (int i = 0; i < 2000; ++i) {
-    const double ts = 0.5 + 1e-3 * i;
-    const double w = 2.0 * std::numbers::pi * 0.8;
-    t.t_s.push_back(ts);
-    t.base_cmd_mm.push_back(4.0 * std::sin(w * ts));
-    t.base_mm.push_back(4.0 * std::sin(w * ts));
-    t.tip_mm.push_back(4.0 * std::sin(w * ts));
-    t.force_n.push_back(std::cos(w * ts) > 0 ? 0.4 : -0.4);
-  }
-  return lab::PrepareLabDataset({t}).trials.front();
 }
 
 // A 1 s, 1 kHz ramp at `v` mm/s from -15 mm, at rest force.

@@ -67,6 +67,30 @@ inline LabDataset Record(const Recording& r) {
   return LoadLabDataset(dir.path());
 }
 
+// Records `r` whose SPEC may name effect files (@path): they are registered in `registry`,
+// which the simulated catheter uses while recording (installed as the default registry and
+// restored afterwards, as the CLI installs its catalog).
+inline LabDataset RecordResolved(const Recording& r, hw::EffectRegistry& registry) {
+  ScratchDir dir("record_resolved");
+  control::RecordOptions o;
+  o.out_dir = dir.path();
+  o.effects = hw::ResolveModelSpec(r.effects, registry);
+  o.parameters = r.parameters;
+  o.configs = r.configs;
+  o.trajectories = r.trajectories;
+  o.tip_loads_n = r.tip_loads_n;
+  o.duration_s = r.duration_s;
+  o.seed = r.seed;
+  const hw::EffectRegistry& previous = hw::DefaultEffectRegistry();
+  hw::SetDefaultEffectRegistry(&registry);
+  struct Restore {
+    const hw::EffectRegistry* previous;
+    ~Restore() { hw::SetDefaultEffectRegistry(previous); }
+  } restore{&previous};
+  control::RecordDataset(o);
+  return LoadLabDataset(dir.path());
+}
+
 // The generating parameters the recorder writes into every trial's meta JSON. Only tests
 // read them; the model lab never does.
 inline std::map<std::string, double> TruthParameters(const LabDataset& ds) {

@@ -95,28 +95,8 @@ Recording SmallRecording(const std::string& effects,
   return r;
 }
 
-// testing::Record for a SPEC that may name effect files (@path): they are registered in
-// `registry`, which the simulated catheter uses while recording (installed as the default
-// registry and restored afterwards, as the CLI installs its catalog).
 LabDataset RecordOpenWorld(const Recording& r, hw::EffectRegistry& registry) {
-  ScratchDir dir("open_world_record");
-  control::RecordOptions o;
-  o.out_dir = dir.path();
-  o.effects = hw::ResolveModelSpec(r.effects, registry);
-  o.parameters = r.parameters;
-  o.configs = r.configs;
-  o.trajectories = r.trajectories;
-  o.tip_loads_n = r.tip_loads_n;
-  o.duration_s = r.duration_s;
-  o.seed = r.seed;
-  const hw::EffectRegistry& previous = hw::DefaultEffectRegistry();
-  hw::SetDefaultEffectRegistry(&registry);
-  struct Restore {
-    const hw::EffectRegistry* previous;
-    ~Restore() { hw::SetDefaultEffectRegistry(previous); }
-  } restore{&previous};
-  control::RecordDataset(o);
-  return LoadLabDataset(dir.path());
+  return testing::RecordResolved(r, registry);
 }
 
 std::string Fixed4(double v) {

@@ -15,11 +15,14 @@
 //  (e) The proposal's effect file (a table or a formula) reads back and refits to the same
 //      held-out figures; a tabulated term refuses a dataset outside its knots, naming them.
 // Noise: 0.03 mm (tip), 0.0075 N (force), 1σ; trials of 3 s at 1 kHz.
+#include "lab/shape_learning.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -78,23 +81,14 @@ LabDataset RecordWith(const std::string& effects, const std::string& configs,
                       std::vector<std::string> trajectories, std::vector<double> loads,
                       double duration_s) {
   hw::EffectRegistry registry = hw::EffectRegistry::WithBuiltinEffects();
-  ScratchDir dir("learn_record");
-  control::RecordOptions o;
-  o.out_dir = dir.path();
-  o.effects = hw::ResolveModelSpec(effects, registry);
-  o.configs = configs;
-  o.trajectories = std::move(trajectories);
-  o.tip_loads_n = std::move(loads);
-  o.duration_s = duration_s;
-  o.seed = 3;
-  const hw::EffectRegistry& previous = hw::DefaultEffectRegistry();
-  hw::SetDefaultEffectRegistry(&registry);
-  struct Restore {
-    const hw::EffectRegistry* previous;
-    ~Restore() { hw::SetDefaultEffectRegistry(previous); }
-  } restore{&previous};
-  control::RecordDataset(o);
-  return LoadLabDataset(dir.path());
+  Recording r;
+  r.effects = effects;
+  r.configs = configs;
+  r.trajectories = std::move(trajectories);
+  r.tip_loads_n = std::move(loads);
+  r.duration_s = duration_s;
+  r.seed = 3;
+  return testing::RecordResolved(r, registry);
 }
 
 std::string Describe(const Diagnosis& d) {
@@ -267,6 +261,34 @@ TEST(ShapeLearning, ATabulatedTermRefusesADatasetOutsideItsKnots) {
     EXPECT_NE(what.find("narrow_shape.json"), std::string::npos) << what;
     EXPECT_NE(what.find("base_mm"), std::string::npos) << what;
   }
+}
+
+TEST(ShapeLearning, ALearnAlongOptionThatNamesNoVariableIsRefusedNamingTheOption) {
+  EXPECT_NO_THROW(CheckLearnVariables({"base_mm", "bend_deg*velocity_mm_s"}, "--learn-along"));
+  for (const char* bad : {"base", "force_n", "tip_mm", "velocity_mm_s*bend_deg", "bend_deg*"}) {
+    try {
+      CheckLearnVariables({bad}, "--learn-along");
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const std::invalid_argument& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("--learn-along"), std::string::npos) << what;
+      EXPECT_NE(what.find(std::string("'") + bad + "'"), std::string::npos) << what;
+      EXPECT_NE(what.find("base_mm"), std::string::npos) << what;  // the valid names
+    }
+  }
+}
+
+TEST(ShapeLearning, LearnsOnlyAlongTheVariablesTheUserNames) {
+  ScratchDir scratch("learn_along");
+  const fs::path file = WriteText(scratch.path(), "step.json", kStep);
+  const LabDataset ds =
+      RecordWith("seed+@" + file.string(), "seed", {"sine:4:1.2", "mitral"}, {0.0, 1.0}, 2.0);
+  DiagnoseOptions o;
+  o.discover = false;
+  o.learn_along = {"base_mm"};
+  const Diagnosis d = Diagnose(hw::SeedEffects(), ds, o);
+  for (const LearnedShape& l : d.learning.shapes)
+    EXPECT_EQ(l.variables, std::vector<std::string>{"base_mm"}) << Describe(d);
 }
 
 TEST(ShapeLearning, TooFewTrialsToCrossValidateAShapeSaySoAndKeepTheFit) {
