@@ -31,7 +31,15 @@ class TrialResidual {
     std::size_t b = 0;
     if (num_parameters() > 0) model_.SetParametersForFit(fixed_ != nullptr ? fixed_ : blocks[b++]);
     const TrialNuisance nuisance{blocks[b][0], blocks[b + 1][0]};
-    PredictTrial(model_, *trial_, nuisance, prediction_);
+    // An effect that refuses the step's values (a tabulated term's input pushed outside its
+    // knots by a trial parameter) fails this evaluation: Ceres then tries a shorter step.
+    // Its error never crosses Ceres' worker threads; the data's own range is checked before
+    // the solve (Run), where the error reaches the user.
+    try {
+      PredictTrial(model_, *trial_, nuisance, prediction_);
+    } catch (const std::exception&) {
+      return false;
+    }
     const std::size_t m = trial_->fit_index.size();
     for (std::size_t r = 0; r < m; ++r) {
       const std::size_t i = trial_->fit_index[r];
@@ -363,6 +371,18 @@ FitResult Run(const std::vector<std::string>& effects, const LabDataset& ds,
         continue;
       }
       problem.AddResidualBlock(cost, nullptr, physical);
+    }
+  }
+
+  // Every trial once at the starting values, on this thread: an effect that refuses the
+  // data (a tabulated term used outside its knots) throws here with its message.
+  {
+    Prediction scratch;
+    for (std::size_t k = 0; k < subset.size(); ++k) {
+      const LabTrial& lt = ds.trials[subset[k]];
+      hw::TransmissionModel model(registry, effects, lt.trial.config);
+      if (np > 0) model.SetParametersForFit(result.parameters.data());
+      PredictTrial(model, lt, {offsets[k], contacts[k]}, scratch);
     }
   }
 
