@@ -306,7 +306,14 @@ TEST(IgtlDetectionServer, StalledClientDropsAndIsCutOffWhileOthersGetEverything)
       EXPECT_NEAR(r->messages()[3 * i + 1].timestamp_s, kT0 + 0.002 * i, kStampTol);
     }
   }
-  ASSERT_TRUE(WaitUntil([&] { return server.stats().clients_stalled == 1; }, 1500ms));
+  // The server counts the stall when it closes the client and the clients left once it has
+  // removed it, a moment later (two updates): wait for both.
+  ASSERT_TRUE(WaitUntil(
+      [&] {
+        const DetectionServerStats now = server.stats();
+        return now.clients_stalled == 1 && now.clients_now == 2;
+      },
+      1500ms));
   const DetectionServerStats st = server.stats();
   EXPECT_EQ(st.samples_dropped, 0u);
   EXPECT_EQ(st.clients_now, 2);
