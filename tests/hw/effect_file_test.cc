@@ -48,25 +48,12 @@ std::string EffectText(const std::string& name, const std::string& params,
 const std::string kViscousParam =
     R"j({"name": "c_n_per_mm_s", "unit": "N/(mm/s)", "default": 0.006, "lower": 0, "upper": 0.1})j";
 
-class EffectFileTest : public ::testing::Test {
+class EffectFileTest : public testing::ScratchFileTest {
  protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("echoservo_effect_file_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::create_directories(dir_);
-  }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
-  std::string Write(const std::string& file, const std::string& text) {
-    const auto path = dir_ / file;
-    std::ofstream(path) << text;
-    return path.string();
-  }
   // Registers `text` (written to `file`) in the registry.
   void Add(const std::string& file, const std::string& text) {
     RegisterEffectSpec(registry_, ReadEffectFile(Write(file, text)));
   }
-  std::filesystem::path dir_;
   EffectRegistry registry_ = EffectRegistry::WithBuiltinEffects();
 };
 

@@ -101,22 +101,7 @@ SampleSignals AtBase(double base_mm, double velocity_mm_s = 0.0) {
   return s;
 }
 
-class EffectTableTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("echoservo_effect_table_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::filesystem::create_directories(dir_);
-  }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
-  std::string Write(const std::string& file, const std::string& text) {
-    const auto path = dir_ / file;
-    std::ofstream(path) << text;
-    return path.string();
-  }
-  std::filesystem::path dir_;
-};
+class EffectTableTest : public testing::ScratchFileTest {};
 
 // ------------------------------------------------------------------------- format
 

@@ -3,8 +3,13 @@
 // Units: mm, s, N.
 #pragma once
 
+#include <gtest/gtest.h>
+#include <unistd.h>
+
 #include <array>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <string>
 #include <vector>
@@ -14,6 +19,27 @@
 #include "lab/lab_dataset.h"
 
 namespace echoservo::hw::testing {
+
+// A fixture with a scratch folder of its own per test (removed afterwards) and a writer of
+// effect files into it.
+class ScratchFileTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("echoservo_hw_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->test_suite_name() + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  // Writes `text` to `file` in the scratch folder; its path.
+  std::string Write(const std::string& file, const std::string& text) {
+    const auto path = dir_ / file;
+    std::ofstream(path) << text;
+    return path.string();
+  }
+  std::filesystem::path dir_;
+};
 
 // A 2 s, 1 kHz trial of a ±4 mm 0.8 Hz sine starting at t = 0.5 s (so that time_s = t − t0
 // differs from t), with a square-wave force and the tip following the base.
