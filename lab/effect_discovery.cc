@@ -15,7 +15,6 @@ namespace {
 enum class Shape { kLinear, kQuadratic, kCubic, kBump };
 
 // Trials the choice between screened terms is made on (spread over a larger dataset).
-constexpr std::size_t kSelectionTrials = 16;
 
 struct HookInfo {
   const char* hook;
@@ -517,12 +516,7 @@ std::optional<Proposal> DiscoverEffect(const std::vector<std::string>& model, co
   double force_excess = d.force_excess;
   FitResult start_from = d.base;
   const bool subset = ds.trials.size() > kSelectionTrials;
-  LabDataset spread;
-  if (subset) {
-    spread.noise = ds.noise;
-    for (std::size_t k = 0; k < kSelectionTrials; ++k)
-      spread.trials.push_back(ds.trials[k * ds.trials.size() / kSelectionTrials]);
-  }
+  const LabDataset spread = subset ? SpreadTrials(ds, kSelectionTrials) : LabDataset{};
   const LabDataset& selection = subset ? spread : ds;
   for (int round = 0; round < o.max_terms; ++round) {
     const std::vector<Term> screened =

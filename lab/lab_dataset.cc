@@ -74,6 +74,15 @@ std::size_t LabDataset::residual_samples() const {
   return n;
 }
 
+LabDataset SpreadTrials(const LabDataset& ds, std::size_t count) {
+  LabDataset out;
+  out.noise = ds.noise;
+  const std::size_t n = ds.trials.size();
+  for (std::size_t k = 0; k < std::min(count, n); ++k)
+    out.trials.push_back(ds.trials[k * n / std::min(count, n)]);
+  return out;
+}
+
 double EstimateNoise(const std::vector<double>& x, double floor) {
   if (x.size() < 3) return floor;
   std::vector<double> d2;

@@ -55,4 +55,10 @@ LabDataset PrepareLabDataset(std::vector<hw::Trial> trials, const LabDatasetOpti
 // / √6, floored by the quantum (smallest non-zero step) / √12 and by `floor`.
 double EstimateNoise(const std::vector<double>& signal, double floor);
 
+// On a large dataset the lab chooses between candidate terms on a selection of trials spread
+// over it (then refits what it keeps on every trial): this many.
+inline constexpr std::size_t kSelectionTrials = 16;
+// `count` trials spread evenly over `dataset` (trial k·n/count), with its noise levels.
+LabDataset SpreadTrials(const LabDataset& dataset, std::size_t count);
+
 }  // namespace echoservo::lab

@@ -13,7 +13,6 @@
 namespace echoservo::lab {
 namespace {
 
-constexpr std::size_t kShapeSelectionTrials = 16;  // as the discovery library's choice
 // Knots along a sample-level variable: the count whose spline predicts held-out trials best
 // (a ripple of a few millimetres needs more than a drift): 12 at the data's quantiles, or 24
 // or 48 evenly spaced (a periodic shape is resolved alike over the whole range).
@@ -614,13 +613,8 @@ std::optional<Proposal> LearnMissingTerm(const std::vector<std::string>& model,
   std::stable_sort(screened.begin(), screened.end(), [](const Screened& a, const Screened& b) {
     return a.shape.held_out_gain > b.shape.held_out_gain;
   });
-  const bool subset = ds.trials.size() > kShapeSelectionTrials;
-  LabDataset spread;
-  if (subset) {
-    spread.noise = ds.noise;
-    for (std::size_t k = 0; k < kShapeSelectionTrials; ++k)
-      spread.trials.push_back(ds.trials[k * ds.trials.size() / kShapeSelectionTrials]);
-  }
+  const bool subset = ds.trials.size() > kSelectionTrials;
+  const LabDataset spread = subset ? SpreadTrials(ds, kSelectionTrials) : LabDataset{};
   const LabDataset& selection = subset ? spread : ds;
   // A form of the grammar that acts on the model's state rather than on a residual: the
   // deadzone widening with speed (a guidewire lifting off the bend's wall when fast). Its
@@ -818,7 +812,7 @@ std::optional<Proposal> LearnMissingTerm(const std::vector<std::string>& model,
       learning.shapes.front().shape.values = full.spec.tables.front().values;
     }
     if (!full.judgement.significant) {
-      learning.note = "what was learnt on " + std::to_string(kShapeSelectionTrials) +
+      learning.note = "what was learnt on " + std::to_string(kSelectionTrials) +
                       " trials is not significant on all " + std::to_string(ds.trials.size());
       return std::nullopt;
     }
