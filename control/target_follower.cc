@@ -81,14 +81,13 @@ TargetFollower::TargetFollower(FollowerConfig config) : config_(config) {
 }
 
 void TargetFollower::Enable(double now_s) {
-  if (faults_ & follower_fault::kImageNotResponding) {
+  if (faults_ & fault::kImageNotResponding) {
     // The operator re-arms the check: judged afresh on volumes from now on.
     response_head_ = response_count_ = 0;
     response_ = {};
   }
-  faults_ &= ~(follower_fault::kStopRequested | follower_fault::kRetracted |
-               follower_fault::kImageNotResponding | follower_fault::kDeadlineHold |
-               follower_fault::kDeadlineRetract);
+  faults_ &= ~(fault::kStopRequested | fault::kRetracted | fault::kImageNotResponding |
+               fault::kDeadlineHold | fault::kDeadlineRetract);
   if (has_estimate_ && now_s - last_estimate_s_ <= config_.stale_after_s) {
     mode_ = FollowerMode::kFollowing;
   } else {
@@ -97,7 +96,7 @@ void TargetFollower::Enable(double now_s) {
 }
 
 void TargetFollower::Stop(double now_s) {
-  Hold(now_s, follower_fault::kStopRequested);
+  Hold(now_s, fault::kStopRequested);
   mode_ = FollowerMode::kStopped;
 }
 
@@ -134,7 +133,7 @@ bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
   if (!(std::isfinite(e.acquired_s) && std::isfinite(e.published_s) &&
         std::isfinite(e.tip_axis_mm) && std::isfinite(e.confidence) && Finite(e.target_motion))) {
     ++counters_.rejected_non_finite;
-    faults_ |= follower_fault::kRejectedEstimate;
+    faults_ |= fault::kInvalidEstimate;
     return false;
   }
   const auto& m = e.target_motion;
@@ -146,14 +145,14 @@ bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
       std::all_of(m.sin_mm.begin(), m.sin_mm.end(), [](double a) { return std::abs(a) <= 100; });
   if (!range_ok) {
     ++counters_.rejected_range;
-    faults_ |= follower_fault::kRejectedEstimate;
+    faults_ |= fault::kInvalidEstimate;
     return false;
   }
   if (e.acquired_s > e.published_s || e.published_s > now_s + config_.max_future_s ||
       now_s - e.acquired_s > config_.stale_after_s + 1.0 ||
       (has_estimate_ && e.acquired_s <= estimate_.acquired_s)) {
     ++counters_.rejected_time;
-    faults_ |= follower_fault::kRejectedEstimate;
+    faults_ |= fault::kInvalidEstimate;
     return false;
   }
   if (e.confidence < config_.min_confidence) {
@@ -161,7 +160,7 @@ bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
     return false;
   }
   const double x = TipAt(e.acquired_s);
-  const bool frozen = faults_ & follower_fault::kImageNotResponding;
+  const bool frozen = faults_ & fault::kImageNotResponding;
   if (config_.estimate_scale && !frozen) {
     // Exponentially weighted least squares of s_tip on x_tip, the slope pulled towards 1 by
     // its prior: slope = (cov + λ)/(var + λ), λ = σ_tip²/(n_eff·σ_k²), n_eff = (2 − g)/g the
@@ -199,10 +198,9 @@ bool TargetFollower::Accept(const TargetEstimateInput& e, double now_s) {
   has_estimate_ = true;
   last_estimate_s_ = now_s;
   ++counters_.accepted;
-  faults_ &= ~(follower_fault::kStaleEstimate | follower_fault::kRejectedEstimate);
+  faults_ &= ~(fault::kStaleEstimate | fault::kInvalidEstimate);
   if (mode_ == FollowerMode::kHolding &&
-      !(faults_ & (follower_fault::kStopRequested | follower_fault::kImageNotResponding |
-                   follower_fault::kDeadlineHold)))
+      !(faults_ & (fault::kStopRequested | fault::kImageNotResponding | fault::kDeadlineHold)))
     mode_ = FollowerMode::kFollowing;
   if (config_.check_response) CheckResponse(e.acquired_s, e.tip_axis_mm, now_s);
   return true;
@@ -257,9 +255,9 @@ void TargetFollower::CheckResponse(double acquired_s, double tip_axis_mm, double
              r.excitation_mm >= config_.response_min_excitation_mm &&
              r.gain_se <= config_.response_max_gain_se;
   if (mode_ == FollowerMode::kFollowing && r.judged && r.gain < config_.response_min_gain &&
-      !(faults_ & follower_fault::kImageNotResponding)) {
+      !(faults_ & fault::kImageNotResponding)) {
     ++counters_.image_not_responding_events;
-    Hold(now_s, follower_fault::kImageNotResponding);
+    Hold(now_s, fault::kImageNotResponding);
   }
 }
 
@@ -278,33 +276,33 @@ void TargetFollower::Hold(double now_s, std::uint32_t fault) {
 
 void TargetFollower::DeadlineHold(double now_s) {
   if (mode_ == FollowerMode::kDisabled) {
-    faults_ |= follower_fault::kDeadlineHold;
+    faults_ |= fault::kDeadlineHold;
     return;
   }
-  Hold(now_s, follower_fault::kDeadlineHold);
+  Hold(now_s, fault::kDeadlineHold);
 }
 
 void TargetFollower::DeadlineCleared(double now_s) {
-  if (!(faults_ & follower_fault::kDeadlineHold)) return;
-  faults_ &= ~follower_fault::kDeadlineHold;
+  if (!(faults_ & fault::kDeadlineHold)) return;
+  faults_ &= ~fault::kDeadlineHold;
   if (mode_ != FollowerMode::kHolding ||
-      (faults_ & (follower_fault::kStopRequested | follower_fault::kImageNotResponding)))
+      (faults_ & (fault::kStopRequested | fault::kImageNotResponding)))
     return;
   const bool stale = !has_estimate_ || now_s - last_estimate_s_ > config_.stale_after_s ||
                      !estimate_.target_motion.ValidAt(now_s);
   if (!stale) {
     mode_ = FollowerMode::kFollowing;
-  } else if (has_estimate_ && !(faults_ & follower_fault::kStaleEstimate)) {
+  } else if (has_estimate_ && !(faults_ & fault::kStaleEstimate)) {
     // The estimate went stale during the hold: the hold goes on for that reason (and
     // retracts at retract_after_s from its start, as any hold).
     ++counters_.stale_events;
-    faults_ |= follower_fault::kStaleEstimate;
+    faults_ |= fault::kStaleEstimate;
   }
 }
 
 void TargetFollower::DeadlineRetract(double now_s) {
-  faults_ |= follower_fault::kDeadlineRetract;
-  faults_ &= ~follower_fault::kDeadlineHold;
+  faults_ |= fault::kDeadlineRetract;
+  faults_ &= ~fault::kDeadlineHold;
   if (mode_ == FollowerMode::kDisabled || mode_ == FollowerMode::kStopped ||
       mode_ == FollowerMode::kRetracting)
     return;
@@ -335,26 +333,26 @@ void TargetFollower::Update(double now_s, double tip_mm) {
                        !estimate_.target_motion.ValidAt(now_s);
     if (mode_ == FollowerMode::kFollowing && stale) {
       ++counters_.stale_events;
-      Hold(now_s, follower_fault::kStaleEstimate);
+      Hold(now_s, fault::kStaleEstimate);
     }
     if (mode_ == FollowerMode::kHolding && now_s - hold_since_s_ >= config_.retract_after_s) {
       mode_ = FollowerMode::kRetracting;
-      faults_ |= follower_fault::kRetracted;
+      faults_ |= fault::kRetracted;
     }
   }
   // The travel bit says whether the reference lies outside travel now (Evaluate sets it too).
   const double x = Raw(now_s).position_mm;
   reference_clamped_ = !(x >= config_.travel_min_mm && x <= config_.travel_max_mm);
   if (reference_clamped_) {
-    faults_ |= follower_fault::kTravelLimit;
+    faults_ |= fault::kTravelLimit;
   } else {
-    faults_ &= ~follower_fault::kTravelLimit;
+    faults_ &= ~fault::kTravelLimit;
   }
 }
 
 MotionSample TargetFollower::Clamp(MotionSample m) const {
   if (m.position_mm < config_.travel_min_mm || m.position_mm > config_.travel_max_mm) {
-    faults_ |= follower_fault::kTravelLimit;
+    faults_ |= fault::kTravelLimit;
     m.position_mm = std::clamp(m.position_mm, config_.travel_min_mm, config_.travel_max_mm);
     m.velocity_mm_s = 0.0;
     m.acceleration_mm_s2 = 0.0;

@@ -27,6 +27,7 @@
 #include <utility>
 #include <vector>
 
+#include "control/fault_bits.h"
 #include "control/trajectory.h"
 #include "estimation/fourier_motion.h"
 
@@ -76,20 +77,7 @@ struct FollowerConfig {
 enum class FollowerMode : std::uint8_t { kDisabled, kFollowing, kHolding, kRetracting, kStopped };
 std::string ToString(FollowerMode mode);
 
-// Fault bits, reported on the state topic.
-namespace follower_fault {
-inline constexpr std::uint32_t kStaleEstimate = 1u << 0;
-inline constexpr std::uint32_t kRejectedEstimate = 1u << 1;
-inline constexpr std::uint32_t kTravelLimit = 1u << 2;
-inline constexpr std::uint32_t kStopRequested = 1u << 3;
-inline constexpr std::uint32_t kRetracted = 1u << 4;
-// The imaged tip does not follow the catheter's (response check): latched until Enable.
-inline constexpr std::uint32_t kImageNotResponding = 1u << 5;
-// The servo loop missed its deadlines (control/deadline_watchdog.h): holding until
-// DeadlineCleared; retracting, latched until Enable.
-inline constexpr std::uint32_t kDeadlineHold = 1u << 6;
-inline constexpr std::uint32_t kDeadlineRetract = 1u << 7;
-}  // namespace follower_fault
+// Fault bits: control/fault_bits.h (one set with the link's).
 
 struct FollowerCounters {
   std::uint64_t accepted = 0;

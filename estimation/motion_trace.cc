@@ -4,7 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "hw/io/csv_table.h"
+#include "formats/csv_table.h"
 
 namespace echoservo::estimation {
 
@@ -14,13 +14,13 @@ std::string MotionTrace::Where(std::size_t i) const {
 }
 
 MotionTrace ReadMotionTrace(const std::filesystem::path& path, const std::string& column) {
-  hw::CsvTableSpec spec;
+  formats::CsvTableSpec spec;
   spec.time_column = "t";
   if (!column.empty()) spec.required = {column};
   spec.required_hint = "(a motion trace needs a time column 't' and position columns in mm)";
   spec.min_rows = 2;
   spec.what = "a motion trace";
-  hw::CsvTable table = hw::ReadCsvTable(path, spec);
+  formats::CsvTable table = formats::ReadCsvTable(path, spec);
   const auto t_it = std::find(table.names.begin(), table.names.end(), "t");
   std::size_t col = table.names.size();
   if (column.empty()) {

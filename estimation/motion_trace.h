@@ -4,7 +4,7 @@
 // File format: a CSV with a header line, a time column `t` (s, strictly increasing) and
 // one or more position columns (mm); one column is chosen by name (default: the first
 // after `t`). NaN, infinity, non-numeric cells, duplicate or decreasing times are errors
-// naming the file, line and column (hw/io/csv_table.h). Gaps — intervals longer than
+// naming the file, line and column (formats/csv_table.h). Gaps — intervals longer than
 // `kGapFactor` times the median interval — are allowed: predictors coast through them.
 #pragma once
 

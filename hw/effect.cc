@@ -18,7 +18,7 @@ std::string_view ToString(EffectStage stage) {
   return "unknown";
 }
 
-EffectContext EffectContext::From(const CatheterConfig& config) {
+EffectContext EffectContext::From(const formats::CatheterConfig& config) {
   EffectContext c;
   c.total_bend_rad = config.TotalBendRad();
   c.gap_mm = config.GapMm();

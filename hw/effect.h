@@ -26,7 +26,7 @@
 #include <string>
 #include <string_view>
 
-#include "hw/catheter_config.h"
+#include "formats/catheter_config.h"
 
 namespace echoservo::hw {
 
@@ -49,7 +49,7 @@ struct EffectContext {
   double total_bend_rad = 0.0;  // θ
   double gap_mm = 0.0;          // D_sheath − D_guidewire
   double tip_load_n = 0.0;      // normal force near the tip
-  static EffectContext From(const CatheterConfig& config);
+  static EffectContext From(const formats::CatheterConfig& config);
 };
 
 // What a signal hook sees of one sample besides the geometry. time_s counts from the

@@ -13,9 +13,9 @@
 #include <set>
 #include <sstream>
 
+#include "formats/durable_file.h"
 #include "hw/effects/builtin_effects.h"
 #include "hw/expression.h"
-#include "hw/io/durable_file.h"
 
 namespace echoservo::hw {
 namespace {
@@ -939,7 +939,7 @@ std::string EffectJson(const EffectFileSpec& spec) {
 }
 
 void WriteEffectFile(const std::filesystem::path& path, const EffectFileSpec& spec) {
-  ReplaceFileContents(path, EffectJson(spec));
+  formats::ReplaceFileContents(path, EffectJson(spec));
 }
 
 std::unique_ptr<Effect> MakeExpressionEffect(const EffectFileSpec& spec) {

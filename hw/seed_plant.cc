@@ -4,7 +4,7 @@
 
 namespace echoservo::hw {
 
-PlantOptions SeedCalibratedPlant(const CatheterConfig& config, std::uint64_t seed) {
+PlantOptions SeedCalibratedPlant(const formats::CatheterConfig& config, std::uint64_t seed) {
   PlantOptions o;
   o.config = config;
   o.seed = seed;
@@ -21,7 +21,7 @@ PlantOptions SeedCalibratedPlant(const CatheterConfig& config, std::uint64_t see
   return o;
 }
 
-PlantOptions SeedModelPlant(const CatheterConfig& config, std::uint64_t seed) {
+PlantOptions SeedModelPlant(const formats::CatheterConfig& config, std::uint64_t seed) {
   PlantOptions o;
   o.config = config;
   o.seed = seed;
@@ -42,8 +42,8 @@ void SelectEffects(PlantOptions& plant, const std::vector<std::string>& effects,
   for (const auto& p : overrides) plant.parameters.push_back(p);
 }
 
-CatheterConfig SeedTrackingCatheter() {
-  CatheterConfig c = CatheterConfig::SeedEvaluation();
+formats::CatheterConfig SeedTrackingCatheter() {
+  formats::CatheterConfig c = formats::CatheterConfig::SeedEvaluation();
   c.tip_load_n = kSeedSealLoadN;
   return c;
 }
@@ -54,12 +54,12 @@ const std::vector<SheathGuidewirePair>& TableOneGeometries() {
   return pairs;
 }
 
-std::vector<CatheterConfig> TableOneSweep(double tip_load_n) {
-  std::vector<CatheterConfig> configs;
+std::vector<formats::CatheterConfig> TableOneSweep(double tip_load_n) {
+  std::vector<formats::CatheterConfig> configs;
   for (const SheathGuidewirePair& g : TableOneGeometries()) {
     for (double angle : {90.0, 180.0, 360.0}) {
       for (double radius : {25.0, 50.0}) {
-        CatheterConfig c;
+        formats::CatheterConfig c;
         c.sheath_id_mm = g.sheath_id_mm;
         c.guidewire_od_mm = g.guidewire_od_mm;
         c.bends = {{angle, radius}};

@@ -21,8 +21,8 @@ namespace echoservo::hw {
 // Normal force of the rubber seal at the tip of the seed's evaluation catheter (N).
 inline constexpr double kSeedSealLoadN = 1.0;
 
-PlantOptions SeedCalibratedPlant(const CatheterConfig& config, std::uint64_t seed = 1);
-PlantOptions SeedModelPlant(const CatheterConfig& config, std::uint64_t seed = 1);
+PlantOptions SeedCalibratedPlant(const formats::CatheterConfig& config, std::uint64_t seed = 1);
+PlantOptions SeedModelPlant(const formats::CatheterConfig& config, std::uint64_t seed = 1);
 
 // Replaces a plant's effects (when `effects` is not empty) keeping the configured
 // parameter values of the effects that remain, then applies `overrides`
@@ -31,7 +31,7 @@ void SelectEffects(PlantOptions& plant, const std::vector<std::string>& effects,
                    const std::vector<std::pair<std::string, double>>& overrides);
 
 // The seed's evaluation catheter with its tip seal.
-CatheterConfig SeedTrackingCatheter();
+formats::CatheterConfig SeedTrackingCatheter();
 
 // Table I of the seed: sheath inner / guidewire outer diameters (mm).
 struct SheathGuidewirePair {
@@ -41,6 +41,6 @@ struct SheathGuidewirePair {
 const std::vector<SheathGuidewirePair>& TableOneGeometries();
 // The seed's bench sweep: every Table I geometry with one bend of 90°, 180° or 360°
 // at radius 25 or 50 mm (24 configurations), with the given tip load.
-std::vector<CatheterConfig> TableOneSweep(double tip_load_n = 0.0);
+std::vector<formats::CatheterConfig> TableOneSweep(double tip_load_n = 0.0);
 
 }  // namespace echoservo::hw

@@ -27,8 +27,8 @@ SimEmTracker::SimEmTracker(SimEmTrackerOptions options, double start_s)
   o_.Validate();
 }
 
-EmSample SimEmTracker::Sample(const Eigen::Vector3d& tip_image_mm) {
-  EmSample r;
+formats::EmSample SimEmTracker::Sample(const Eigen::Vector3d& tip_image_mm) {
+  formats::EmSample r;
   r.t_s = next_s_ + o_.clock_offset_s;
   ++samples_;
   std::uniform_real_distribution<double> u(0.0, 1.0);

@@ -13,7 +13,7 @@
 #include <cstdint>
 #include <random>
 
-#include "hw/io/em_log.h"
+#include "formats/em_log.h"
 
 namespace echoservo::hw {
 
@@ -37,8 +37,8 @@ class SimEmTracker {
   double next_sample_s() const { return next_s_; }
   // Takes the sample due at next_sample_s() of the true tip `tip_image_mm` (image frame,
   // at that time) and schedules the next one: t_s on the EM clock, position in the EM
-  // frame (zero for a drop-out). Its log rows: hw/io/em_log.h SimEmLogRow.
-  EmSample Sample(const Eigen::Vector3d& tip_image_mm);
+  // frame (zero for a drop-out). Its log rows: formats/em_log.h SimEmLogRow.
+  formats::EmSample Sample(const Eigen::Vector3d& tip_image_mm);
   std::uint64_t samples() const { return samples_; }
   std::uint64_t dropouts() const { return dropouts_; }
   const SimEmTrackerOptions& options() const { return o_; }

@@ -48,7 +48,7 @@ struct SensorParams {
 };
 
 struct PlantOptions {
-  CatheterConfig config = CatheterConfig::SeedEvaluation();
+  formats::CatheterConfig config = formats::CatheterConfig::SeedEvaluation();
   std::vector<std::string> effects = {"coulomb_friction", "viscous_friction", "backlash"};
   // "<effect>.<parameter>" = value, applied over the effects' defaults.
   std::vector<std::pair<std::string, double>> parameters;

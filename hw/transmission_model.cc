@@ -9,7 +9,7 @@ namespace echoservo::hw {
 
 TransmissionModel::TransmissionModel(const EffectRegistry& registry,
                                      const std::vector<std::string>& effects,
-                                     const CatheterConfig& config)
+                                     const formats::CatheterConfig& config)
     : config_(config) {
   config_.Validate();
   for (const std::string& name : effects) {
@@ -42,7 +42,7 @@ bool TransmissionModel::HasEffect(std::string_view name) const {
   return std::find(names_.begin(), names_.end(), name) != names_.end();
 }
 
-void TransmissionModel::set_config(const CatheterConfig& config) {
+void TransmissionModel::set_config(const formats::CatheterConfig& config) {
   config.Validate();
   config_ = config;
   context_ = EffectContext::From(config_);

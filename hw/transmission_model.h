@@ -35,15 +35,15 @@ class TransmissionModel {
  public:
   // Throws std::invalid_argument for unknown effects or an invalid geometry.
   TransmissionModel(const EffectRegistry& registry, const std::vector<std::string>& effects,
-                    const CatheterConfig& config);
+                    const formats::CatheterConfig& config);
   TransmissionModel(TransmissionModel&&) noexcept;
   TransmissionModel& operator=(TransmissionModel&&) noexcept;
   ~TransmissionModel();
 
   const std::vector<std::string>& effect_names() const { return names_; }
   bool HasEffect(std::string_view name) const;
-  const CatheterConfig& config() const { return config_; }
-  void set_config(const CatheterConfig& config);
+  const formats::CatheterConfig& config() const { return config_; }
+  void set_config(const formats::CatheterConfig& config);
 
   const std::vector<ParameterInfo>& parameter_info() const { return info_; }
   const std::vector<double>& parameters() const { return params_; }
@@ -139,7 +139,7 @@ class TransmissionModel {
   std::vector<std::size_t> offsets_;
   std::vector<ParameterInfo> info_;
   std::vector<double> params_;
-  CatheterConfig config_;
+  formats::CatheterConfig config_;
   EffectContext context_;
   double friction_scale_ = 1.0;
   double friction_level_n_ = 0.0;

@@ -74,7 +74,7 @@ ResidualTable BuildResidualTable(const LabDataset& ds, const std::vector<Predict
   const std::vector<int> trial_fold = ShuffledFolds(ds.trials.size(), std::max(2, folds));
   for (std::size_t j = 0; j < ds.trials.size(); ++j) {
     const LabTrial& lt = ds.trials[j];
-    const hw::Trial& tr = lt.trial;
+    const formats::Trial& tr = lt.trial;
     const Prediction& p = held_out[j];
     const double bend_deg = tr.config.TotalBendRad() * 180.0 / std::numbers::pi;
     for (std::size_t i : lt.fit_index) {

@@ -75,12 +75,12 @@ std::vector<std::string> Concentration(const Diagnosis& d, const LabDataset& ds,
     per_trial.push_back(tip ? t.stats.tip_rms_mm : t.stats.force_rms_n);
   struct Axis {
     const char* name;
-    double (*get)(const hw::CatheterConfig&);
+    double (*get)(const formats::CatheterConfig&);
   };
   const Axis axes[] = {
-      {"tip load", [](const hw::CatheterConfig& c) { return c.tip_load_n; }},
-      {"gap", [](const hw::CatheterConfig& c) { return c.GapMm(); }},
-      {"total bend angle", [](const hw::CatheterConfig& c) { return c.TotalBendRad(); }}};
+      {"tip load", [](const formats::CatheterConfig& c) { return c.tip_load_n; }},
+      {"gap", [](const formats::CatheterConfig& c) { return c.GapMm(); }},
+      {"total bend angle", [](const formats::CatheterConfig& c) { return c.TotalBendRad(); }}};
   for (const Axis& a : axes) {
     std::vector<double> x;
     for (const LabTrial& t : ds.trials) x.push_back(a.get(t.trial.config));

@@ -34,7 +34,7 @@ std::vector<double> Derivative(const std::vector<double>& t, const std::vector<d
   return d;
 }
 
-LabTrial Prepare(hw::Trial trial, const LabDatasetOptions& o) {
+LabTrial Prepare(formats::Trial trial, const LabDatasetOptions& o) {
   LabTrial lt;
   lt.velocity_mm_s = Derivative(trial.t_s, trial.base_mm, o.velocity_window_s);
   lt.acceleration_mm_s2 = Derivative(trial.t_s, lt.velocity_mm_s, o.velocity_window_s);
@@ -100,7 +100,7 @@ double EstimateNoise(const std::vector<double>& x, double floor) {
   return std::max({sigma, q, floor});
 }
 
-LabDataset PrepareLabDataset(std::vector<hw::Trial> trials, const LabDatasetOptions& o) {
+LabDataset PrepareLabDataset(std::vector<formats::Trial> trials, const LabDatasetOptions& o) {
   if (o.stride < 1 || o.stride > 100)
     throw std::invalid_argument("lab: stride must be in [1, 100]");
   if (!(o.velocity_window_s > 0.0 && o.velocity_window_s < 1.0)) {
@@ -110,7 +110,7 @@ LabDataset PrepareLabDataset(std::vector<hw::Trial> trials, const LabDatasetOpti
   LabDataset ds;
   std::vector<double> tip_sigmas;
   std::vector<double> force_sigmas;
-  for (hw::Trial& t : trials) {
+  for (formats::Trial& t : trials) {
     tip_sigmas.push_back(EstimateNoise(t.tip_mm, 1e-4));
     force_sigmas.push_back(EstimateNoise(t.force_n, 1e-4));
     ds.trials.push_back(Prepare(std::move(t), o));
@@ -122,28 +122,28 @@ LabDataset PrepareLabDataset(std::vector<hw::Trial> trials, const LabDatasetOpti
 }
 
 LabDataset LoadLabDataset(const std::filesystem::path& dir, const LabDatasetOptions& o) {
-  if (!o.skip_bad) return PrepareLabDataset(hw::ReadDataset(dir), o);
+  if (!o.skip_bad) return PrepareLabDataset(formats::ReadDataset(dir), o);
   std::error_code ec;
   if (!std::filesystem::is_directory(dir, ec)) {
-    throw hw::TrialFormatError(dir.string() + ": dataset folder not found");
+    throw formats::TrialFormatError(dir.string() + ": dataset folder not found");
   }
   std::vector<std::filesystem::path> csvs;
   for (const auto& entry : std::filesystem::directory_iterator(dir)) {
     if (entry.path().extension() == ".csv") csvs.push_back(entry.path());
   }
   std::sort(csvs.begin(), csvs.end());
-  std::vector<hw::Trial> trials;
+  std::vector<formats::Trial> trials;
   std::vector<std::string> skipped;
   for (const auto& csv : csvs) {
     try {
-      trials.push_back(hw::ReadTrial(csv));
-    } catch (const hw::TrialFormatError& e) {
+      trials.push_back(formats::ReadTrial(csv));
+    } catch (const formats::TrialFormatError& e) {
       skipped.push_back(e.what());
     }
   }
   if (trials.empty()) {
-    throw hw::TrialFormatError(dir.string() + ": no valid trial (" +
-                               std::to_string(skipped.size()) + " skipped)");
+    throw formats::TrialFormatError(dir.string() + ": no valid trial (" +
+                                    std::to_string(skipped.size()) + " skipped)");
   }
   LabDataset ds = PrepareLabDataset(std::move(trials), o);
   ds.skipped = std::move(skipped);

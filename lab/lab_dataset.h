@@ -1,4 +1,4 @@
-// A dataset prepared for the model lab: the trials (hw/io/trial_io.h) with what every fit
+// A dataset prepared for the model lab: the trials (formats/trial_io.h) with what every fit
 // needs computed once — the base velocity (a centred difference over ±5 ms of the
 // measured base, mm/s), the samples used as residuals (every `stride`-th), and the
 // measurement noise of the tip (mm) and force (N) channels estimated from the data
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "hw/io/trial_io.h"
+#include "formats/trial_io.h"
 
 namespace echoservo::lab {
 
@@ -21,7 +21,7 @@ struct NoiseLevels {
 };
 
 struct LabTrial {
-  hw::Trial trial;
+  formats::Trial trial;
   std::vector<double> velocity_mm_s;
   std::vector<double> acceleration_mm_s2;
   // True where the base comes to rest or reverses within the velocity window, and within
@@ -45,11 +45,12 @@ struct LabDatasetOptions {
   double stick_speed_mm_s = 1.0;
 };
 
-// Reads every trial of `dir`. Throws hw::TrialFormatError naming the file, line and
+// Reads every trial of `dir`. Throws formats::TrialFormatError naming the file, line and
 // problem unless `skip_bad`, in which case a dataset without any valid trial throws.
 LabDataset LoadLabDataset(const std::filesystem::path& dir, const LabDatasetOptions& options = {});
 // Prepares trials already in memory.
-LabDataset PrepareLabDataset(std::vector<hw::Trial> trials, const LabDatasetOptions& options = {});
+LabDataset PrepareLabDataset(std::vector<formats::Trial> trials,
+                             const LabDatasetOptions& options = {});
 
 // Robust noise σ of a uniformly sampled signal: 1.4826·MAD of its second differences
 // / √6, floored by the quantum (smallest non-zero step) / √12 and by `floor`.

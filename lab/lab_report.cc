@@ -69,9 +69,11 @@ std::string Sentence(std::string text) {
   return text;
 }
 
-double Duration(const hw::Trial& t) { return t.size() > 1 ? t.t_s.back() - t.t_s.front() : 0.0; }
+double Duration(const formats::Trial& t) {
+  return t.size() > 1 ? t.t_s.back() - t.t_s.front() : 0.0;
+}
 
-std::string ConfigText(const hw::CatheterConfig& c) {
+std::string ConfigText(const formats::CatheterConfig& c) {
   return "gap " + Fix(c.GapMm(), 2) + " mm (sheath " + Fix(c.sheath_id_mm, 2) + " mm, guidewire " +
          Fix(c.guidewire_od_mm, 2) + " mm) &middot; " + std::to_string(c.bends.size()) + " bend" +
          (c.bends.size() == 1 ? "" : "s") + ", total " +
@@ -415,7 +417,7 @@ std::vector<double> Difference(const std::vector<double>& a, const std::vector<d
 }
 
 std::string TrialPanel(const Context& c, std::size_t k, std::size_t slot) {
-  const hw::Trial& t = c.ds.trials[k].trial;
+  const formats::Trial& t = c.ds.trials[k].trial;
   const Prediction& ps = c.spec_fit.trials[k].prediction;
   const Prediction& pf = c.final_fit.trials[k].prediction;
   const std::string spec_label = "SPEC " + c.spec;
@@ -503,7 +505,7 @@ std::string TrialsHtml(const Context& c) {
   }
   s += "<div class=\"scroll\"><table>" + Row(head, "", true);
   for (std::size_t k = 0; k < c.ds.trials.size(); ++k) {
-    const hw::Trial& t = c.ds.trials[k].trial;
+    const formats::Trial& t = c.ds.trials[k].trial;
     std::string name = Breakable(t.name);
     if (slot[k] >= 0)
       name = "<a href=\"#trial-plot-" + std::to_string(slot[k]) + "\">" + name + "</a>";

@@ -105,7 +105,7 @@ class SmoothnessResidual : public ceres::CostFunction {
 // The value of a table input at sample i of a trial, when it is one of the trial's own
 // signals or its geometry; false otherwise (the model's tip, its friction force).
 bool SignalInput(const LabTrial& lt, const std::string& input, std::size_t i, double& out) {
-  const hw::Trial& tr = lt.trial;
+  const formats::Trial& tr = lt.trial;
   if (input == "time_s")
     out = tr.t_s[i] - tr.t_s.front();
   else if (input == "base_mm")

@@ -18,7 +18,7 @@ namespace {
 
 void PredictTrial(const hw::TransmissionModel& model, const LabTrial& lt,
                   const TrialNuisance& nuisance, Prediction& out) {
-  const hw::Trial& tr = lt.trial;
+  const formats::Trial& tr = lt.trial;
   const std::size_t n = tr.size();
   out.tip_mm.resize(n);
   out.force_n.resize(n);

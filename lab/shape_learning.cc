@@ -144,7 +144,7 @@ std::pair<double, double> FullRange(const LabDataset& ds, const std::string& inp
   };
   for (double v : table_values) take(v);
   for (const LabTrial& lt : ds.trials) {
-    const hw::Trial& tr = lt.trial;
+    const formats::Trial& tr = lt.trial;
     for (std::size_t i = 0; i < tr.size(); ++i) {
       if (input == "base_mm") take(tr.base_mm[i]);
       if (input == "time_s") take(tr.t_s[i] - tr.t_s.front());

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <string_view>
 
+#include "control/fault_bits.h"
 #include "estimation/fourier_motion.h"
 
 namespace echoservo::link {
@@ -57,23 +58,9 @@ enum class ServoMode : std::uint8_t {
 inline constexpr std::uint8_t kMaxServoMode = 5;
 std::string_view ToString(ServoMode m);
 
-// Bits of CatheterStateSample::faults (CatheterState_Constants::FAULT_*).
-namespace fault {
-inline constexpr std::uint32_t kStaleEstimate = 1u << 0;
-inline constexpr std::uint32_t kInvalidEstimate = 1u << 1;
-inline constexpr std::uint32_t kTravelLimit = 1u << 2;
-inline constexpr std::uint32_t kVelocityLimit = 1u << 3;
-inline constexpr std::uint32_t kForceLimit = 1u << 4;
-inline constexpr std::uint32_t kNonFinite = 1u << 5;
-inline constexpr std::uint32_t kHardware = 1u << 6;
-inline constexpr std::uint32_t kTrackerLost = 1u << 7;
-inline constexpr std::uint32_t kImageNotResponding = 1u << 8;  // imaged tip ignores the catheter
-// The servo loop missed its deadlines (control/deadline_watchdog.h): K overruns in a row,
-// holding; no cycle on time for the retraction time, retracting (latched until ENABLE).
-inline constexpr std::uint32_t kDeadlineHold = 1u << 9;
-inline constexpr std::uint32_t kDeadlineRetract = 1u << 10;
-inline constexpr std::uint32_t kAll = (1u << 11) - 1;
-}  // namespace fault
+// Bits of CatheterStateSample::faults (CatheterState_Constants::FAULT_*): the servo's one
+// fault-bit set (control/fault_bits.h).
+namespace fault = control::fault;
 
 struct CatheterStateSample {
   std::uint64_t sequence_number = 0;

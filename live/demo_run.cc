@@ -16,10 +16,10 @@
 #include <utility>
 #include <vector>
 
+#include "formats/durable_file.h"
+#include "formats/run_dir_guard.h"
+#include "formats/run_record.h"
 #include "hw/fault_injection.h"
-#include "hw/io/durable_file.h"
-#include "hw/io/run_dir_guard.h"
-#include "hw/io/run_record.h"
 #include "hw/sim_em_tracker.h"
 #include "imaging/io/async_sequence_writer.h"
 #include "link/dds_link.h"
@@ -67,17 +67,6 @@ std::string Fmt(const char* f, auto... args) {
   char buf[512];
   std::snprintf(buf, sizeof buf, f, args...);
   return buf;
-}
-
-// The 3 × 4 rows of a rigid transform, comma-separated (run.json "em_to_image").
-std::string RowMajor(const Eigen::Isometry3d& t) {
-  std::string out;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 4; ++c) {
-      if (!out.empty()) out += ',';
-      out += Fmt("%.9g", t.matrix()(r, c));
-    }
-  return out;
 }
 
 // The dds.sec.* properties of `role` in --secure DIR (errors name the flag and the file).
@@ -159,20 +148,21 @@ DemoResult RunDemo(const DemoOptions& o) {
   SimScene scene({o.rate_hz, o.heart_rate_bpm, o.target_p2p_mm, standoff_mm, o.seed});
   const Eigen::Isometry3d em_to_image = scene.em_to_image();
 
-  // The RUN directory (hw/io/run_record.h): run.json now, the streams as they come. If the
+  // The RUN directory (formats/run_record.h): run.json now, the streams as they come. If the
   // demo fails, what it created there is removed so a retry with the same --out works.
-  hw::RunDirGuard run_guard(o.out_dir);
-  std::unique_ptr<hw::RunWriter> writer;
+  formats::RunDirGuard run_guard(o.out_dir);
+  std::unique_ptr<formats::RunWriter> writer;
   if (!o.out_dir.empty()) {
-    hw::RunInfo info;
+    formats::RunInfo info;
     info.heart_rate_hz = o.heart_rate_bpm / 60.0;
     info.standoff_mm = standoff_mm;
-    info.metadata_json =
-        Fmt("{\"source\": \"echoservo demo\", \"seed\": %llu, \"duration_s\": %.3f, "
-            "\"em_to_image\": \"%s\", \"time_base\": \"pipeline\", \"settings\": ",
-            static_cast<unsigned long long>(o.seed), o.duration_s, RowMajor(em_to_image).c_str()) +
-        SettingsJson(settings) + "}";  // every parameter's value (live/pipeline_parameters.h)
-    writer = std::make_unique<hw::RunWriter>(o.out_dir, info);
+    info.meta.source = "echoservo demo";
+    info.meta.seed = o.seed;
+    info.meta.duration_s = o.duration_s;
+    info.meta.em_to_image = em_to_image;
+    info.meta.time_base = formats::RunTimeBase::kPipeline;
+    info.meta.settings = AllValues(settings);  // every parameter (live/pipeline_parameters.h)
+    writer = std::make_unique<formats::RunWriter>(o.out_dir, info);
   }
   // The live EM stream's rows go to the writer: stopped before it is destroyed.
   struct ExternalEm {
@@ -328,7 +318,7 @@ DemoResult RunDemo(const DemoOptions& o) {
     }
     while (em.next_sample_s() <= t) {
       const double t_sample = em.next_sample_s();
-      const hw::EmSample r = em.Sample(tip_img);
+      const formats::EmSample r = em.Sample(tip_img);
       if (!o.external_em) rows.AddEm(r);
       if (r.valid && t_sample >= o.metrics_start_s) {
         const double t_pipeline = r.t_s - scene.em_options().clock_offset_s;
@@ -369,7 +359,7 @@ DemoResult RunDemo(const DemoOptions& o) {
   result.timing_json = ServoTimingJson(result.realtime, result.timing, so.watchdog,
                                        ss.deadline_holds, ss.deadline_retracts);
   if (!o.out_dir.empty())
-    hw::ReplaceFileContents(o.out_dir / "timing.json", result.timing_json + "\n");
+    formats::ReplaceFileContents(o.out_dir / "timing.json", result.timing_json + "\n");
   result.limit_faults = ss.limit_interventions;
   result.limit_violations = ss.limit_violations;
   result.resumes = ss.resumes;
@@ -415,7 +405,7 @@ DemoResult RunDemo(const DemoOptions& o) {
     result.volumes_recorded = rs.written;
     result.volumes_record_dropped = rs.dropped;
     result.record_error = rs.error;
-    hw::ReplaceFileContents(o.out_dir / "volumes.json", recorder->SummaryJson());
+    formats::ReplaceFileContents(o.out_dir / "volumes.json", recorder->SummaryJson());
     if (!rs.error.empty()) log("volume recording stopped: " + rs.error);
     if (rs.dropped > 0)
       log(Fmt("volume recording: %llu of %llu volumes dropped (recorder queue of %zu full)",

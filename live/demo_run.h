@@ -24,7 +24,7 @@
 #include "control/realtime.h"
 #include "hw/fault_injection.h"
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 class RunWriter;
 }
 
@@ -85,7 +85,7 @@ struct DemoOptions {
   // EM tracker, whose samples still give tip_to_target_rms_mm and em_samples. Called once
   // the RUN writer exists (null without out_dir); returns the function that stops the
   // stream, called before the writer goes (an exception included).
-  std::function<std::function<void()>(hw::RunWriter*)> external_em;
+  std::function<std::function<void()>(formats::RunWriter*)> external_em;
   // Each volume the tracker processed: its result, the volume, and its acquisition time on
   // the system clock (s since the Unix epoch: pipeline time + the pipeline clock's offset,
   // measured once at the start). Called on the tracker's thread right after Process, so it

@@ -6,7 +6,7 @@
 
 namespace echoservo::live {
 
-RunRowQueue::RunRowQueue(hw::RunWriter* writer, double drain_period_s)
+RunRowQueue::RunRowQueue(formats::RunWriter* writer, double drain_period_s)
     : writer_(writer), drain_period_s_(drain_period_s) {
   if (!writer_) return;
   thread_ = std::thread([this] {
@@ -38,12 +38,12 @@ void RunRowQueue::AddServo(double t_s, control::FollowerMode mode, double setpoi
   servo_.Push(r);
 }
 
-void RunRowQueue::AddEm(const hw::EmSample& s) {
+void RunRowQueue::AddEm(const formats::EmSample& s) {
   if (!writer_) return;
   em_.Push({s.t_s, {s.position_mm.x(), s.position_mm.y(), s.position_mm.z()}, s.valid});
 }
 
-void RunRowQueue::AddLatency(const hw::LatencyRecord& r) {
+void RunRowQueue::AddLatency(const formats::LatencyRecord& r) {
   if (writer_) latency_.Push(r);
 }
 
@@ -51,7 +51,7 @@ void RunRowQueue::Drain() {
   if (failed_.load()) {  // the writer failed: drop, so that the rings do not count it as lost
     servo_.Drain([](const ServoRow&) {});
     em_.Drain([](const EmRow&) {});
-    latency_.Drain([](const hw::LatencyRecord&) {});
+    latency_.Drain([](const formats::LatencyRecord&) {});
     return;
   }
   try {
@@ -65,7 +65,7 @@ void RunRowQueue::Drain() {
       writer_->AddEm(
           {r.t_s, Eigen::Vector3d(r.position_mm[0], r.position_mm[1], r.position_mm[2]), r.valid});
     });
-    latency_.Drain([&](const hw::LatencyRecord& r) { writer_->AddLatency(r); });
+    latency_.Drain([&](const formats::LatencyRecord& r) { writer_->AddLatency(r); });
   } catch (const std::exception& e) {
     error_ = e.what();
     failed_.store(true);

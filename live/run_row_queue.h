@@ -1,11 +1,11 @@
 // The demo's RUN rows from the servo thread, written by a thread of their own: the 1 kHz
 // cycle hands each row (servo + truth at 100 Hz, EM samples, latency) to a lock-free ring
 // (live/lock_free.h) and never waits for a file lock or a write(2); the writer thread drains
-// the rings every `drain_period_s` into hw::RunWriter, in order per file. A row the writer
+// the rings every `drain_period_s` into formats::RunWriter, in order per file. A row the writer
 // could not take in time (a ring full: ~10 s behind) is lost and counted, never blocking the
 // servo. Crash safety: a process killed at any instant loses what is queued (at most one
-// drain period of rows) besides what hw::RunWriter itself may lose.
-// Units and frames as in hw/io/run_record.h; the mode is a control::FollowerMode.
+// drain period of rows) besides what formats::RunWriter itself may lose.
+// Units and frames as in formats/run_record.h; the mode is a control::FollowerMode.
 #pragma once
 
 #include <atomic>
@@ -14,7 +14,7 @@
 #include <thread>
 
 #include "control/target_follower.h"
-#include "hw/io/run_record.h"
+#include "formats/run_record.h"
 #include "live/lock_free.h"
 
 namespace echoservo::live {
@@ -23,7 +23,7 @@ class RunRowQueue {
  public:
   // `writer` may be null (nothing is written; the calls below do nothing). Starts the thread:
   // construct it before the servo thread is raised to real time (threads inherit SCHED_FIFO).
-  explicit RunRowQueue(hw::RunWriter* writer, double drain_period_s = 0.005);
+  explicit RunRowQueue(formats::RunWriter* writer, double drain_period_s = 0.005);
   ~RunRowQueue();  // Stop()
   RunRowQueue(const RunRowQueue&) = delete;
   RunRowQueue& operator=(const RunRowQueue&) = delete;
@@ -32,8 +32,8 @@ class RunRowQueue {
   void AddServo(double t_s, control::FollowerMode mode, double setpoint_mm, double base_mm,
                 double tip_estimate_mm, double faults, const Eigen::Vector3d& target_mm,
                 const Eigen::Vector3d& tip_mm);
-  void AddEm(const hw::EmSample& s);
-  void AddLatency(const hw::LatencyRecord& r);
+  void AddEm(const formats::EmSample& s);
+  void AddLatency(const formats::LatencyRecord& r);
 
   // Drains what is queued, stops the thread and flushes the writer (idempotent).
   void Stop();
@@ -54,11 +54,11 @@ class RunRowQueue {
   };
   void Drain();
 
-  hw::RunWriter* writer_;
+  formats::RunWriter* writer_;
   double drain_period_s_;
   LossyRing<ServoRow, 2048> servo_;
   LossyRing<EmRow, 1024> em_;
-  LossyRing<hw::LatencyRecord, 1024> latency_;
+  LossyRing<formats::LatencyRecord, 1024> latency_;
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> lost_{0};
   std::atomic<bool> failed_{false};

@@ -43,14 +43,7 @@ link::ServoMode ToLinkMode(control::FollowerMode mode) {
 }
 
 std::uint32_t ToLinkFaults(std::uint32_t f) {
-  std::uint32_t out = 0;
-  if (f & control::follower_fault::kStaleEstimate) out |= link::fault::kStaleEstimate;
-  if (f & control::follower_fault::kRejectedEstimate) out |= link::fault::kInvalidEstimate;
-  if (f & control::follower_fault::kTravelLimit) out |= link::fault::kTravelLimit;
-  if (f & control::follower_fault::kImageNotResponding) out |= link::fault::kImageNotResponding;
-  if (f & control::follower_fault::kDeadlineHold) out |= link::fault::kDeadlineHold;
-  if (f & control::follower_fault::kDeadlineRetract) out |= link::fault::kDeadlineRetract;
-  return out;  // kStopRequested and kRetracted are modes, not faults
+  return f & control::fault::kAll;  // kStopRequested and kRetracted are modes, not faults
 }
 
 ServoNode::ServoNode(hw::HardwareInterface& hardware, control::ServoConfig servo,
@@ -265,7 +258,7 @@ bool ServoNode::ApplyTarget(const link::TargetEstimateSample& s, double t_s) {
   // the loop missed its deadlines for too long (those latch until an operator's ENABLE).
   if (o_.auto_enable &&
       (!enabled_once_ || (follower_.mode() == control::FollowerMode::kRetracting &&
-                          !(follower_.faults() & control::follower_fault::kImageNotResponding) &&
+                          !(follower_.faults() & control::fault::kImageNotResponding) &&
                           deadline_action_ != control::DeadlineAction::kRetract))) {
     if (enabled_once_) ++stats_.resumes;
     follower_.Enable(t_s);

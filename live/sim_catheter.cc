@@ -19,7 +19,7 @@ SimCatheter MakeSimCatheter(double sheath_id_mm, double guidewire_od_mm, std::ui
   if (!(guidewire_od_mm > 0 && sheath_id_mm > guidewire_od_mm && sheath_id_mm <= 5))
     throw std::invalid_argument(
         "--sheath-id/--guidewire-od: must satisfy 0 < guidewire < sheath ≤ 5 mm");
-  hw::CatheterConfig catheter = hw::SeedTrackingCatheter();
+  formats::CatheterConfig catheter = hw::SeedTrackingCatheter();
   catheter.sheath_id_mm = sheath_id_mm;
   catheter.guidewire_od_mm = guidewire_od_mm;
   SimCatheter c;

@@ -3,7 +3,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "hw/io/run_record.h"
+#include "formats/run_record.h"
 
 namespace echoservo::live {
 
@@ -26,7 +26,7 @@ estimation::PredictorCompetitionOptions TrackerNodeOptions::CompetitionOptions()
 }
 
 TrackerNode::TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher,
-                         hw::RunWriter* writer)
+                         formats::RunWriter* writer)
     : o_(std::move(options)),
       publisher_(publisher),
       writer_(writer),

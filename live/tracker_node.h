@@ -3,7 +3,7 @@
 // predictor competition (estimation/predictor_competition.h: heartbeat EKF, autoregressive
 // predictor, baselines; the best recent one ships) → the predicted motion published as a target
 // estimate on the DDS link (link/dds_link.h) → a row in the RUN directory
-// (hw/io/run_record.h). `echoservo track` and `echoservo demo` drive the same node.
+// (formats/run_record.h). `echoservo track` and `echoservo demo` drive the same node.
 //
 // Clocks: the caller's times (acquisition, arrival, now) are on one node clock in s; link
 // stamps = node time + link_offset_s. Axis coordinates (mm) along the first detection's axis
@@ -25,7 +25,7 @@
 #include "link/dds_link.h"
 #include "tracking/radon_detector.h"
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 class RunWriter;
 }
 
@@ -90,7 +90,8 @@ class TrackerNode {
   // `publisher` (may be null: no link) and `writer` (may be null: no RUN directory) must
   // outlive the node. Throws std::invalid_argument for bad options. Volumes are recorded by
   // the caller (imaging::AsyncSequenceWriter, off the estimate's path).
-  TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher, hw::RunWriter* writer);
+  TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher,
+              formats::RunWriter* writer);
 
   // Processes one volume stamped `stamp_s` (acquired stamp_delay_s earlier) that arrived at
   // `arrived_s`; `now_s` gives the node clock (the publication time is taken after detection
@@ -111,7 +112,7 @@ class TrackerNode {
  private:
   TrackerNodeOptions o_;
   link::TargetPublisher* publisher_;
-  hw::RunWriter* writer_;
+  formats::RunWriter* writer_;
   tracking::RadonDetector detector_;
   estimation::PredictorCompetition competition_;
   estimation::HeartbeatSignificance significance_;

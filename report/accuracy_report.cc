@@ -55,9 +55,10 @@ std::string WindowText(const AccuracyMetrics& m) {
 namespace {
 
 // `field` (tip_mm or target_mm) of the volumes where the target was found, at acquired_s.
-PointSeries FoundVolumes(const hw::RunRecord& run, Eigen::Vector3d hw::TargetRecord::*field) {
+PointSeries FoundVolumes(const formats::RunRecord& run,
+                         Eigen::Vector3d formats::TargetRecord::*field) {
   PointSeries s;
-  for (const hw::TargetRecord& r : run.targets) {
+  for (const formats::TargetRecord& r : run.targets) {
     if (r.found) s.Add(r.acquired_s, r.*field);
   }
   return s;
@@ -65,16 +66,16 @@ PointSeries FoundVolumes(const hw::RunRecord& run, Eigen::Vector3d hw::TargetRec
 
 // The target, less the run's standoff along the mean tracked catheter axis (where the tip
 // should be) when run.json gives one.
-PointSeries TargetSeries(const hw::RunRecord& run) {
+PointSeries TargetSeries(const formats::RunRecord& run) {
   PointSeries s;
   if (!run.has_truth) {
-    s = FoundVolumes(run, &hw::TargetRecord::target_mm);
+    s = FoundVolumes(run, &formats::TargetRecord::target_mm);
   } else {
-    for (const hw::TruthRecord& r : run.truth) s.Add(r.t_s, r.target_mm);
+    for (const formats::TruthRecord& r : run.truth) s.Add(r.t_s, r.target_mm);
   }
   if (!run.info.standoff_mm || *run.info.standoff_mm == 0.0) return s;
   Eigen::Vector3d axis = Eigen::Vector3d::Zero();
-  for (const hw::TargetRecord& r : run.targets)
+  for (const formats::TargetRecord& r : run.targets)
     if (r.found) axis += r.axis;
   if (!(axis.norm() > 0.0))
     throw std::invalid_argument(
@@ -98,7 +99,7 @@ Eigen::Vector3d PrincipalAxis(const PointSeries& s) {
 
 // The cardiac phase model: cycles(t) = (φ0 + 2π f (t − t0)) / 2π. Fills the metrics' heart
 // rate and axis; returns false (with a note) when no fit is possible.
-bool FitPhase(const hw::RunRecord& run, const PointSeries& target, const AccuracyOptions& o,
+bool FitPhase(const formats::RunRecord& run, const PointSeries& target, const AccuracyOptions& o,
               AccuracyMetrics& m, estimation::FourierMotion& motion) {
   if (target.size() < 2) return false;
   m.motion_axis = PrincipalAxis(target);
@@ -161,7 +162,7 @@ void BeatAndPhase(const estimation::FourierMotion& motion, int bins, AccuracyMet
 
 // The scored window: options.from_s when finite, else from the first servo.csv row in the
 // following mode (control/target_follower.cc names it "following"), else the whole run.
-void SetWindow(const hw::RunRecord& run, const AccuracyOptions& o, AccuracyMetrics& m) {
+void SetWindow(const formats::RunRecord& run, const AccuracyOptions& o, AccuracyMetrics& m) {
   if (std::isfinite(o.from_s)) {
     m.window_from_s = o.from_s;
     m.window_reason = o.from_reason;
@@ -171,7 +172,7 @@ void SetWindow(const hw::RunRecord& run, const AccuracyOptions& o, AccuracyMetri
     m.window_reason = "whole run: no servo.csv";
     return;
   }
-  for (const hw::ServoRecord& r : run.servo) {
+  for (const formats::ServoRecord& r : run.servo) {
     if (r.mode == kFollowingMode) {
       m.window_from_s = r.t_s;
       m.window_reason = "servo began following";
@@ -181,7 +182,7 @@ void SetWindow(const hw::RunRecord& run, const AccuracyOptions& o, AccuracyMetri
   m.window_reason = "whole run: servo.csv has no '" + std::string(kFollowingMode) + "' row";
 }
 
-DroppedFrames CountDropped(const hw::RunRecord& run) {
+DroppedFrames CountDropped(const formats::RunRecord& run) {
   DroppedFrames d;
   d.volumes = run.targets.size();
   std::vector<double> dt;
@@ -372,14 +373,14 @@ std::string AlignmentHtml(const AccuracyMetrics& m) {
 }
 
 std::string EmHtml(const AccuracyMetrics& m, const AccuracyReportOptions& o) {
-  const hw::EmLog& e = m.em;
+  const formats::EmLog& e = m.em;
   std::string sensors;
   for (const std::string& n : e.sensors) sensors += (sensors.empty() ? "" : ", ") + Esc(n);
   std::string s = "<section id=\"em\"><h2>EM log</h2><table>";
   s += Row({"file", "<code>" + Esc(o.em_path) + "</code>"});
-  s += Row({"format, sensor", std::string(hw::EmLogFormatName(e.format)) + ", " + Esc(e.sensor) +
-                                  " (of " + sensors + ")"});
-  s += Row({"units in the file", hw::LengthUnitName(e.file_units)});
+  s += Row({"format, sensor", std::string(formats::EmLogFormatName(e.format)) + ", " +
+                                  Esc(e.sensor) + " (of " + sensors + ")"});
+  s += Row({"units in the file", formats::LengthUnitName(e.file_units)});
   s += Row({"samples, valid",
             std::to_string(e.samples.size()) + ", " + std::to_string(e.valid_samples())});
   s += Row({"median period (ms)", Fix(1000.0 * e.MedianPeriodS(), 2)});
@@ -412,7 +413,7 @@ std::string FramesHtml(const AccuracyMetrics& m) {
 // The servo thread's timing from timing.json (null without one).
 Json ServoTimingJson(const AccuracyMetrics& m) {
   if (!m.servo_timing) return Json(nullptr);
-  const hw::ServoTimingRecord& t = *m.servo_timing;
+  const formats::ServoTimingRecord& t = *m.servo_timing;
   return {{"realtime", t.realtime_summary},
           {"fifo", t.fifo},
           {"refusals", t.refusals},
@@ -437,7 +438,7 @@ Json ServoTimingJson(const AccuracyMetrics& m) {
 
 std::string ServoTimingHtml(const AccuracyMetrics& m) {
   if (!m.servo_timing) return "";
-  const hw::ServoTimingRecord& t = *m.servo_timing;
+  const formats::ServoTimingRecord& t = *m.servo_timing;
   std::string s = "<section id=\"servo-timing\"><h2>Servo timing</h2><p class=\"note\">" +
                   Esc(t.realtime_summary) + "; " + std::to_string(t.cycles) + " cycles of " +
                   Fix(1e3 * t.period_s, 2) + " ms, " + std::to_string(t.overruns) +
@@ -457,10 +458,10 @@ std::string ServoTimingHtml(const AccuracyMetrics& m) {
   return s + "</section>";
 }
 
-std::string ServoHtml(const hw::RunRecord& run, const AccuracyMetrics& m) {
+std::string ServoHtml(const formats::RunRecord& run, const AccuracyMetrics& m) {
   if (!run.has_servo) return "";
   std::vector<double> t, setpoint, base, tip;
-  for (const hw::ServoRecord& r : run.servo) {
+  for (const formats::ServoRecord& r : run.servo) {
     t.push_back(r.t_s);
     setpoint.push_back(r.setpoint_mm);
     base.push_back(r.base_mm);
@@ -502,13 +503,13 @@ TimingStats SummarizeMs(const std::vector<double>& v) {
   return s;
 }
 
-AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
+AccuracyMetrics ComputeAccuracy(const formats::RunRecord& run, const formats::EmLog& em,
                                 const AccuracyOptions& o) {
   if (o.phase_bins < 1) throw std::invalid_argument("accuracy: phase_bins must be at least 1");
   AccuracyMetrics m;
   m.em = em;
   const PointSeries em_points = ValidEmPoints(em);
-  const PointSeries image_tip = FoundVolumes(run, &hw::TargetRecord::tip_mm);
+  const PointSeries image_tip = FoundVolumes(run, &formats::TargetRecord::tip_mm);
   m.alignment = AlignEmToImage(em_points, image_tip, o.alignment);
   m.transform_source = m.alignment.fixed_transform ? o.transform_source : "estimated";
   m.offset_source = m.alignment.fixed_offset ? o.offset_source : "estimated";
@@ -568,11 +569,11 @@ AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
   estimation::FourierMotion motion;
   if (FitPhase(run, target, o, m, motion)) BeatAndPhase(motion, o.phase_bins, m);
 
-  for (const hw::LatencyRecord& r : run.latency)
+  for (const formats::LatencyRecord& r : run.latency)
     m.latency_ms.push_back(1000.0 * (r.applied_s - r.arrived_s));
   m.latency = SummarizeMs(m.latency_ms);
   std::vector<double> pipeline;
-  for (const hw::TargetRecord& r : run.targets)
+  for (const formats::TargetRecord& r : run.targets)
     pipeline.push_back(1000.0 * (r.published_s - r.acquired_s));
   m.pipeline = SummarizeMs(pipeline);
   m.dropped = CountDropped(run);
@@ -611,7 +612,7 @@ std::string AccuracyJson(const AccuracyMetrics& m, const AccuracyReportOptions& 
   const Json j = {
       {"run", o.run_path},
       {"em_log", o.em_path},
-      {"em_format", hw::EmLogFormatName(m.em.format)},
+      {"em_format", formats::EmLogFormatName(m.em.format)},
       {"em_sensor", m.em.sensor},
       {"target_source", m.target_source},
       {"tip_to_target_rms_mm", m.rms_mm},
@@ -663,12 +664,12 @@ std::string AccuracyJson(const AccuracyMetrics& m, const AccuracyReportOptions& 
   return j.dump(2);
 }
 
-std::string RenderAccuracyReport(const hw::RunRecord& run, const AccuracyMetrics& m,
+std::string RenderAccuracyReport(const formats::RunRecord& run, const AccuracyMetrics& m,
                                  const AccuracyReportOptions& o) {
   const double duration = m.t_s.empty() ? 0.0 : m.t_s.back() - m.t_s.front();
   const std::vector<std::pair<std::string, std::string>> facts = {
       {"Run", "<code>" + Esc(o.run_path) + "</code>"},
-      {"EM log", "<code>" + Esc(o.em_path) + "</code> (" + hw::EmLogFormatName(m.em.format) +
+      {"EM log", "<code>" + Esc(o.em_path) + "</code> (" + formats::EmLogFormatName(m.em.format) +
                      ", sensor " + Esc(m.em.sensor) + ")"},
       {"Tip-to-target RMS",
        "<b>" + Fix(m.rms_mm, 3) + " mm</b> (seed " + Fix(o.reference_rms_mm, 2) + " mm)"},

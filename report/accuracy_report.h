@@ -1,7 +1,7 @@
 // Accuracy of a tracking run (`echoservo report RUN`): how far the catheter tip, as the EM
 // tracker measured it, was from the target, and what the pipeline's timing was.
 //
-// In: a RUN directory (hw/io/run_record.h) and an EM-tracker log (hw/io/em_log.h), aligned
+// In: a RUN directory (formats/run_record.h) and an EM-tracker log (formats/em_log.h), aligned
 // to the image by report/em_alignment.h. Out: the tip-to-target error at every valid EM
 // sample (RMS, mean, p95, max; overall, per beat and by heartbeat phase), latency and
 // pipeline time (p50/p95/p99/max/mean), dropped frames, EM drop-outs and servo faults and
@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "hw/io/em_log.h"
-#include "hw/io/run_record.h"
+#include "formats/em_log.h"
+#include "formats/run_record.h"
 #include "report/em_alignment.h"
 
 namespace echoservo::report {
@@ -71,7 +71,7 @@ struct DroppedFrames {
 };
 
 struct AccuracyMetrics {
-  hw::EmLog em;  // as imported
+  formats::EmLog em;  // as imported
   EmAlignment alignment;
   std::string target_source;  // "truth.csv" or "targets.csv"
   // The evaluated EM samples: pipeline time, mapped EM tip, target, error.
@@ -90,8 +90,8 @@ struct AccuracyMetrics {
   TimingStats latency, pipeline;   // latency.csv; published − acquired
   DroppedFrames dropped;
   double servo_faults = 0.0;
-  std::map<std::string, double> servo_mode_s;         // time in each servo mode
-  std::optional<hw::ServoTimingRecord> servo_timing;  // the RUN's timing.json, when present
+  std::map<std::string, double> servo_mode_s;              // time in each servo mode
+  std::optional<formats::ServoTimingRecord> servo_timing;  // the RUN's timing.json, when present
   std::vector<std::string> notes;
   // The scored window: from window_from_s (−inf: the whole run) on, and why.
   double window_from_s = -std::numeric_limits<double>::infinity();
@@ -108,7 +108,7 @@ struct AccuracyMetrics {
 // Throws std::invalid_argument when the alignment refuses, a plausibility check
 // (CheckAlignment) fails without options.force, or no EM sample overlaps the target after
 // alignment within the scored window.
-AccuracyMetrics ComputeAccuracy(const hw::RunRecord& run, const hw::EmLog& em,
+AccuracyMetrics ComputeAccuracy(const formats::RunRecord& run, const formats::EmLog& em,
                                 const AccuracyOptions& options = {});
 
 // The scored window in words: "from 2.10 s: servo began following", "from 3.00 s: --from",
@@ -132,7 +132,7 @@ struct AccuracyReportOptions {
 std::string AccuracyJson(const AccuracyMetrics& metrics, const AccuracyReportOptions& options);
 
 // One self-contained HTML page.
-std::string RenderAccuracyReport(const hw::RunRecord& run, const AccuracyMetrics& metrics,
+std::string RenderAccuracyReport(const formats::RunRecord& run, const AccuracyMetrics& metrics,
                                  const AccuracyReportOptions& options);
 
 }  // namespace echoservo::report

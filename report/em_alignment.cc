@@ -163,9 +163,9 @@ double PointSeries::MedianPeriodS() const {
   return MedianOf(std::move(dt));
 }
 
-PointSeries ValidEmPoints(const hw::EmLog& log) {
+PointSeries ValidEmPoints(const formats::EmLog& log) {
   PointSeries s;
-  for (const hw::EmSample& e : log.samples) {
+  for (const formats::EmSample& e : log.samples) {
     if (e.valid) s.Add(e.t_s, e.position_mm);
   }
   return s;

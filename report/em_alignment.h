@@ -1,7 +1,7 @@
 // The EM tracker against the image: the rigid transform em_to_image (EM tracker frame →
 // image frame) and the EM clock's offset (t_pipeline = t_em + em_time_offset_s), estimated
-// from the same catheter tip seen by both: the EM sensor's positions (hw/io/em_log.h) and
-// the tip the detector found in the volumes (targets.csv of a RUN, hw/io/run_record.h).
+// from the same catheter tip seen by both: the EM sensor's positions (formats/em_log.h) and
+// the tip the detector found in the volumes (targets.csv of a RUN, formats/run_record.h).
 //
 // Method: a grid over offsets with a closed-form rigid fit (Kabsch/Umeyama) at each, then a
 // Ceres refinement of offset and pose together; with a known em_to_image only the offset.
@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-#include "hw/io/em_log.h"
+#include "formats/em_log.h"
 
 namespace echoservo::report {
 
@@ -39,7 +39,7 @@ struct PointSeries {
 };
 
 // The valid samples of an EM log.
-PointSeries ValidEmPoints(const hw::EmLog& log);
+PointSeries ValidEmPoints(const formats::EmLog& log);
 
 struct EmAlignmentOptions {
   // The offset is searched in offset_center_s ± max_offset_s; a NaN centre means the first

@@ -25,7 +25,7 @@
 #include <utility>
 #include <vector>
 
-#include "hw/io/durable_file.h"
+#include "formats/durable_file.h"
 #include "tune/interrupt.h"
 
 extern char** environ;
@@ -407,8 +407,8 @@ class SlurmExecutor final : public TrialExecutor {
           line += " " + SlurmShellQuote(a);
         lines += line + "\n";
       }
-      hw::ReplaceFileContents(batch / "tasks.txt", lines);
-      hw::ReplaceFileContents(batch / "job.sh", SlurmJobScript(batch, o_.timeout_s));
+      formats::ReplaceFileContents(batch / "tasks.txt", lines);
+      formats::ReplaceFileContents(batch / "job.sh", SlurmJobScript(batch, o_.timeout_s));
       fs::permissions(batch / "job.sh", fs::perms::owner_all | fs::perms::group_read |
                                             fs::perms::group_exec | fs::perms::others_read |
                                             fs::perms::others_exec);
@@ -591,7 +591,7 @@ class SlurmExecutor final : public TrialExecutor {
   // An outcome the executor made itself (the task's script wrote none), beside the trial's.
   static void Record(const TrialTask& t, const TaskOutcome& o) {
     try {
-      hw::ReplaceFileContents(SlurmOutcomePath(t), TaskOutcomeToJson(o));
+      formats::ReplaceFileContents(SlurmOutcomePath(t), TaskOutcomeToJson(o));
     } catch (const std::exception&) {
       // The outcome is still returned; the study records the trial's failure.
     }

@@ -12,7 +12,7 @@
 #include <tuple>
 #include <utility>
 
-#include "hw/io/durable_file.h"
+#include "formats/durable_file.h"
 
 namespace echoservo::tune {
 namespace {
@@ -88,7 +88,7 @@ void StudyFilesWrite(const fs::path& path, const std::string& text) {
     throw std::runtime_error(path.parent_path().string() + ": cannot create the folder (" +
                              ec.message() + ")");
   }
-  hw::ReplaceFileContents(path, text + "\n");
+  formats::ReplaceFileContents(path, text + "\n");
 }
 
 void StudyFilesCheckId(const std::string& id, const char* what) {

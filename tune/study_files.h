@@ -1,5 +1,5 @@
 // The STUDY folder of `echoservo tune`: every trial's request and result on disk, written
-// crash-safe (hw/io/durable_file.h: write to a temporary, fsync, rename), so a study that is
+// crash-safe (formats/durable_file.h: write to a temporary, fsync, rename), so a study that is
 // killed keeps every finished trial and a rerun skips them.
 //
 //   STUDY/study.json                 StudyHeader (the normalised SPEC and what it expands to)

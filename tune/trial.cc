@@ -14,9 +14,9 @@
 #include <utility>
 
 #include "estimation/motion_trace.h"
-#include "hw/io/durable_file.h"
-#include "hw/io/em_log.h"
-#include "hw/io/run_record.h"
+#include "formats/durable_file.h"
+#include "formats/em_log.h"
+#include "formats/run_record.h"
 #include "imaging/io/em_log_import.h"
 #include "imaging/io/recording.h"
 #include "imaging/io/sequence_reader.h"
@@ -127,26 +127,6 @@ std::optional<estimation::MotionTrace> TrialTrace2(std::string source, std::vect
   m.t_s = std::move(t);
   m.position_mm = std::move(s);
   return m;
-}
-
-// run.json's "em_to_image": 12 or 16 numbers, row-major (as `echoservo report` reads it).
-std::optional<Eigen::Isometry3d> TrialEmToImage(const hw::RunRecord& run) {
-  const auto meta = nlohmann::json::parse(run.info.metadata_json, nullptr, false);
-  if (!meta.is_object() || !meta.contains("em_to_image") || !meta["em_to_image"].is_string())
-    return std::nullopt;
-  std::string text = meta["em_to_image"].get<std::string>();
-  std::replace(text.begin(), text.end(), ',', ' ');
-  std::istringstream in(text);
-  std::vector<double> v;
-  double x = 0.0;
-  while (in >> x) v.push_back(x);
-  if (v.size() != 12 && v.size() != 16)
-    throw std::invalid_argument(run.dir.string() +
-                                "/run.json: em_to_image must hold 12 or 16 numbers");
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 4; ++c) t.matrix()(r, c) = v[static_cast<std::size_t>(r * 4 + c)];
-  return t;
 }
 
 // One replayed volume.
@@ -516,15 +496,15 @@ TrialResult RunTrial(const TrialRequest& request, TrialTrace* trace) {
   // EM: the replayed targets against the recording's EM log, as `echoservo report` does.
   if (!paths.em.empty()) {
     try {
-      hw::RunRecord run;
+      formats::RunRecord run;
       if (!paths.run_dir.empty()) {
-        run = hw::ReadRunRecord(paths.run_dir);
+        run = formats::ReadRunRecord(paths.run_dir);
       } else {
         run.dir = paths.volumes.parent_path();
       }
       run.targets.clear();
       for (const TrialVolume& v : vols) {
-        hw::TargetRecord r;
+        formats::TargetRecord r;
         r.acquired_s = r.arrived_s = r.published_s = v.t_s;
         r.found = v.measured;
         if (v.measured) {
@@ -537,11 +517,11 @@ TrialResult RunTrial(const TrialRequest& request, TrialTrace* trace) {
       }
       run.truth.clear();
       run.has_truth = false;  // score the replayed targets, not the live run's truth
-      const hw::EmLog em = imaging::ReadEmLog(paths.em, {});
+      const formats::EmLog em = imaging::ReadEmLog(paths.em, {});
       report::AccuracyOptions ao;
       ao.from_s = from;
       ao.from_reason = "from_s";
-      if (const auto e2i = TrialEmToImage(run)) {
+      if (const auto& e2i = run.info.meta.em_to_image) {
         ao.alignment.em_to_image = *e2i;
         ao.transform_source = "run.json";
       }
@@ -583,12 +563,12 @@ void WriteTrialTrace(const TrialTrace& trace, const std::filesystem::path& dir) 
          num(r.predicted_s_mm) + "," + num(r.measured_later_s_mm) + "," + num(r.truth_later_s_mm) +
          "\n";
   }
-  hw::ReplaceFileContents(dir / "volumes.csv", v);
+  formats::ReplaceFileContents(dir / "volumes.csv", v);
   std::string l = "t_s,tip_s_mm,desired_s_mm,base_mm,mode\n";
   for (const TrialLoopRow& r : trace.loop)
     l += num(r.t_s) + "," + num(r.tip_s_mm) + "," + num(r.desired_s_mm) + "," + num(r.base_mm) +
          "," + r.mode + "\n";
-  hw::ReplaceFileContents(dir / "loop.csv", l);
+  formats::ReplaceFileContents(dir / "loop.csv", l);
 }
 
 // JSON.

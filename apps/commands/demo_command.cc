@@ -52,7 +52,7 @@ void RunDemoCommand(const DemoArgs& a) {
   // --em-connect: the live EM stream replaces the simulated EM tracker in em.csv.
   EmConnection em(a.em, "demo");
   if (em.enabled()) {
-    o.external_em = [&em](hw::RunWriter* writer) {
+    o.external_em = [&em](formats::RunWriter* writer) {
       em.Start(writer);
       return std::function<void()>([&em] { em.Stop(); });
     };

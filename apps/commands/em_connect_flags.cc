@@ -5,8 +5,8 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
-#include "hw/io/durable_file.h"
-#include "hw/io/run_record.h"
+#include "formats/durable_file.h"
+#include "formats/run_record.h"
 #include "imaging/igtl/em_stream.h"
 #include "imaging/igtl/tcp.h"
 
@@ -43,7 +43,7 @@ EmConnection::EmConnection(const EmConnectFlags& flags, std::string command)
 
 EmConnection::~EmConnection() { Stop(); }
 
-void EmConnection::Start(hw::RunWriter* writer) {
+void EmConnection::Start(formats::RunWriter* writer) {
   if (!enabled() || client_) return;
   igtl::EmStreamOptions o;
   o.host = host_;
@@ -112,7 +112,7 @@ std::string EmConnection::Finish(const std::filesystem::path& out_dir) {
                       {"last_error", s.last_error},
                       {"bytes", s.bytes}};
   const std::string text = j.dump(2);
-  if (!out_dir.empty()) hw::ReplaceFileContents(out_dir / "em_stream.json", text + "\n");
+  if (!out_dir.empty()) formats::ReplaceFileContents(out_dir / "em_stream.json", text + "\n");
   std::fprintf(stderr,
                "%s --em-connect %s: %lld sample(s) of '%s' (%lld valid), %lld duplicate(s) and "
                "%lld older skipped, %lld rejected, %lld connection(s), %lld disconnect(s)\n",

@@ -1,5 +1,5 @@
 // `--em-connect HOST:PORT [--em-tool NAME]` of `track` and `demo`: live EM tracking from a
-// PLUS server (imaging/igtl/em_stream.h) into the RUN's em.csv (hw::RunWriter::AddEm: the
+// PLUS server (imaging/igtl/em_stream.h) into the RUN's em.csv (formats::RunWriter::AddEm: the
 // EM tracker's clock, s since the Unix epoch, and frame, mm), with the client's counts in
 // RUN/em_stream.json and `--json`'s em_stream.
 // Errors: a malformed HOST:PORT or a tool name over 20 bytes throws std::invalid_argument
@@ -15,7 +15,7 @@
 namespace CLI {
 class App;
 }
-namespace echoservo::hw {
+namespace echoservo::formats {
 class RunWriter;
 }
 namespace echoservo::imaging::openigtlink {
@@ -44,7 +44,7 @@ class EmConnection {
   bool enabled() const { return !flags_.connect.empty(); }
   // Connects in the background; each accepted sample goes to writer->AddEm (writer may be
   // null: counted only). Nothing when !enabled().
-  void Start(hw::RunWriter* writer);
+  void Start(formats::RunWriter* writer);
   void Stop();  // idempotent
   // After Stop: the counts as a JSON object text ("null" when !enabled()), also written to
   // out_dir/em_stream.json when out_dir is not empty, and a summary line on stderr.

@@ -94,7 +94,7 @@ std::string Join(const nlohmann::json& array, const std::string& sep = " ") {
 
 namespace fs = std::filesystem;
 
-// The files a RUN directory may hold (hw/io/run_record.h, live/demo_run.h).
+// The files a RUN directory may hold (formats/run_record.h, live/demo_run.h).
 constexpr const char* kRunFiles[] = {"run.json", "targets.csv", "servo.csv",   "latency.csv",
                                      "em.csv",   "truth.csv",   "report.html", "volumes.igs.mhd"};
 

@@ -172,11 +172,11 @@ bool IsMotionTrace(const LabFlags& f, MotionLabFlags& m) {
 // Writes each trial with its model predictions as extra columns (trial format).
 void WriteResiduals(const std::string& dir, const lab::LabDataset& ds, const lab::FitResult& r) {
   for (std::size_t k = 0; k < r.trials.size(); ++k) {
-    hw::Trial t = ds.trials[k].trial;
+    formats::Trial t = ds.trials[k].trial;
     t.extra_names = {"tip_model", "force_model", "velocity"};
     t.extra_columns = {r.trials[k].prediction.tip_mm, r.trials[k].prediction.force_n,
                        ds.trials[k].velocity_mm_s};
-    hw::WriteTrial(dir, t);
+    formats::WriteTrial(dir, t);
   }
 }
 

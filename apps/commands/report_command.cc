@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -15,7 +16,7 @@
 #include <utility>
 
 #include "apps/output.h"
-#include "hw/io/run_record.h"
+#include "formats/run_record.h"
 #include "imaging/io/em_log_import.h"
 #include "report/accuracy_report.h"
 
@@ -40,31 +41,7 @@ struct ReportFlags {
   std::string from_reason = "--from";
 };
 
-constexpr double kRigidTolerance = 1e-3;
-
 // 12 or 16 numbers, row-major: a rigid transform (mm).
-Eigen::Isometry3d ParseTransform(const std::string& text) {
-  const std::vector<double> v = ParseNumberList(text, "--em-to-image");
-  if (v.size() != 12 && v.size() != 16) {
-    throw std::invalid_argument(
-        "--em-to-image: expected 12 or 16 numbers (a 3x4 or 4x4 matrix, "
-        "row-major, mm), got " +
-        std::to_string(v.size()));
-  }
-  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
-  for (std::size_t i = 0; i < v.size(); ++i)
-    m(static_cast<Eigen::Index>(i / 4), static_cast<Eigen::Index>(i % 4)) = v[i];
-  const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
-  if ((r.transpose() * r - Eigen::Matrix3d::Identity()).norm() > kRigidTolerance ||
-      r.determinant() < 0.0 || (m.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() > 0.0) {
-    throw std::invalid_argument(
-        "--em-to-image: not a rigid transform (a rotation and a translation)");
-  }
-  Eigen::Isometry3d t;
-  t.matrix() = m;
-  return t;
-}
-
 // --tracker-lag: a number of seconds, or the JSON a `calibrate temporal --json` printed
 // (its tracker_lag_s). Returns the lag and the words the report shows for its source.
 std::pair<double, std::string> ParseTrackerLag(const std::string& text) {
@@ -106,7 +83,7 @@ std::pair<double, std::string> ParseTrackerLag(const std::string& text) {
 struct Produced {
   report::AccuracyMetrics metrics;
   report::AccuracyReportOptions options;
-  hw::EmLog em;
+  formats::EmLog em;
 };
 
 // --out must name a file that can be written; a folder or a failed write is the user's
@@ -134,7 +111,8 @@ void WritePage(const std::string& out, const std::string& html) {
 // Reads the run and its EM log, computes the metrics and writes the HTML page.
 Produced Produce(const ReportFlags& f) {
   CheckOut(f.out);  // before the work
-  const hw::RunRecord run = hw::ReadRunRecord(f.run);
+  const formats::RunRecord run = formats::ReadRunRecord(f.run);
+  for (const std::string& w : run.info.warnings) std::fprintf(stderr, "report: %s\n", w.c_str());
   std::string em_path = f.em;
   if (em_path.empty()) {
     if (!run.has_em) {
@@ -142,28 +120,24 @@ Produced Produce(const ReportFlags& f) {
     }
     em_path = run.EmPath().string();
   }
-  hw::EmImportOptions io;
-  io.format = hw::ParseEmLogFormat(f.em_format);
-  if (!f.em_units.empty()) io.units = hw::ParseLengthUnit(f.em_units);
+  formats::EmImportOptions io;
+  io.format = formats::ParseEmLogFormat(f.em_format);
+  if (!f.em_units.empty()) io.units = formats::ParseLengthUnit(f.em_units);
   io.sensor = f.sensor;
-  const hw::EmLog em = imaging::ReadEmLog(em_path, io);
+  const formats::EmLog em = imaging::ReadEmLog(em_path, io);
 
   report::AccuracyOptions ao;
   ao.alignment.max_offset_s = f.max_offset_s;
   ao.alignment.offset_center_s = f.offset_center_s;
   if (!f.em_to_image.empty()) {
-    ao.alignment.em_to_image = ParseTransform(f.em_to_image);
+    ao.alignment.em_to_image = formats::ParseRigidTransform(f.em_to_image, "--em-to-image");
     ao.transform_source = "--em-to-image";
   } else {
     // A run may carry its EM→image calibration (run.json "em_to_image": 12 or 16 numbers,
     // row-major, mm), measured before the run: a catheter moving along its axis cannot
     // give the rotation about it.
-    const auto meta = nlohmann::json::parse(run.info.metadata_json, nullptr, false);
-    if (meta.is_object() && meta.contains("em_to_image")) {
-      if (!meta["em_to_image"].is_string())
-        throw std::invalid_argument(
-            f.run + "/run.json: key 'em_to_image' must be a string of 12 or 16 numbers");
-      ao.alignment.em_to_image = ParseTransform(meta["em_to_image"].get<std::string>());
+    if (run.info.meta.em_to_image) {
+      ao.alignment.em_to_image = *run.info.meta.em_to_image;
       ao.transform_source = "run.json";
     }
   }
@@ -173,8 +147,7 @@ Produced Produce(const ReportFlags& f) {
           "--tracker-lag and --offset-center: give one (a given lag is not searched)");
     // A lag relates two stamps of one clock: the run's times must be on the EM tracker's
     // (system) clock, not the demo's pipeline clock (s since the run's start).
-    const auto meta = nlohmann::json::parse(run.info.metadata_json, nullptr, false);
-    if (meta.is_object() && meta.value("time_base", "") == "pipeline")
+    if (run.info.meta.time_base == formats::RunTimeBase::kPipeline)
       throw std::invalid_argument(
           "--tracker-lag: " + f.run +
           "/run.json says time_base 'pipeline': the run's times count from its start, not on "
@@ -205,7 +178,7 @@ void RunReport(const ReportFlags& f) {
   const Produced p = Produce(f);
   const report::AccuracyMetrics& m = p.metrics;
   const report::AccuracyReportOptions& ro = p.options;
-  const hw::EmLog& em = p.em;
+  const formats::EmLog& em = p.em;
   for (const std::string& w : m.warnings)
     std::cerr << "WARNING (--force): the EM log failed a plausibility check: " << w << "\n";
   if (f.json) {
@@ -232,7 +205,7 @@ void RunReport(const ReportFlags& f) {
   }
   std::cout << "dropped frames " << m.dropped.total() << " of " << m.dropped.volumes << "\n";
   if (m.servo_timing) {
-    const hw::ServoTimingRecord& t = *m.servo_timing;
+    const formats::ServoTimingRecord& t = *m.servo_timing;
     std::cout << "servo timing (" << t.realtime_summary << "): wake-up latency p50/p99/p99.9/max "
               << Fixed(t.wakeup_p50_us, 0) << "/" << Fixed(t.wakeup_p99_us, 0) << "/"
               << Fixed(t.wakeup_p999_us, 0) << "/" << Fixed(t.wakeup_max_us, 0) << " us, overruns "

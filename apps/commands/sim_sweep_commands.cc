@@ -9,7 +9,7 @@
 #include "apps/output.h"
 #include "control/experiments/bench_experiments.h"
 #include "control/experiments/track_experiment.h"
-#include "hw/io/trial_io.h"
+#include "formats/trial_io.h"
 #include "hw/seed_plant.h"
 
 namespace echoservo::apps {
@@ -31,7 +31,7 @@ struct SweepFlags {
   }
 };
 
-nlohmann::json ConfigJson(const hw::CatheterConfig& c) {
+nlohmann::json ConfigJson(const formats::CatheterConfig& c) {
   return {{"sheath_id_mm", c.sheath_id_mm},
           {"guidewire_od_mm", c.guidewire_od_mm},
           {"gap_mm", c.GapMm()},
@@ -111,8 +111,8 @@ void RunBacklash(const SweepFlags& f) {
 
 void RunCalibrate(const SweepFlags& f) {
   control::SweepOptions o = f.Options();
-  hw::CatheterConfig config =
-      f.catheter.empty() ? hw::SeedTrackingCatheter() : hw::ReadCatheterConfig(f.catheter);
+  formats::CatheterConfig config =
+      f.catheter.empty() ? hw::SeedTrackingCatheter() : formats::ReadCatheterConfig(f.catheter);
   if (f.tip_load_n_set) config.tip_load_n = f.tip_load_n;
   hw::SimulatedCatheter plant(control::SweepPlant(o, config, false));
   plant.Configure();

@@ -10,7 +10,7 @@
 #include "apps/commands/sim_command.h"
 #include "apps/output.h"
 #include "control/experiments/track_experiment.h"
-#include "hw/io/trial_io.h"
+#include "formats/trial_io.h"
 #include "hw/seed_plant.h"
 
 namespace echoservo::apps {
@@ -40,7 +40,7 @@ double SeedMae(const std::string& trajectory, const std::string& compensation) {
 nlohmann::json RunOne(const TrackFlags& f, const std::string& trajectory,
                       const std::string& compensation) {
   control::TrackOptions o = control::TrackOptions::SeedDefaults();
-  if (!f.catheter.empty()) o.plant.config = hw::ReadCatheterConfig(f.catheter);
+  if (!f.catheter.empty()) o.plant.config = formats::ReadCatheterConfig(f.catheter);
   o.trajectory = trajectory;
   o.compensation = compensation;
   o.duration_s = f.duration_s;
@@ -79,7 +79,7 @@ nlohmann::json RunOne(const TrackFlags& f, const std::string& trajectory,
     j["seed_published_mae_mm"] = nullptr;
   }
   if (!f.record_dir.empty()) {
-    hw::Trial trial;
+    formats::Trial trial;
     trial.name = "track_" + trajectory + "_" + compensation;
     for (char& c : trial.name) {
       if (c == ':') c = '_';
@@ -96,7 +96,7 @@ nlohmann::json RunOne(const TrackFlags& f, const std::string& trajectory,
     trial.extra_columns.emplace_back();
     for (const control::CycleRecord& c : r.records)
       trial.extra_columns[0].push_back(c.reference_mm);
-    hw::WriteTrial(f.record_dir, trial);
+    formats::WriteTrial(f.record_dir, trial);
     j["recorded"] = (std::filesystem::path(f.record_dir) / (trial.name + ".csv")).string();
   }
   return j;

@@ -38,9 +38,9 @@
 #include "apps/commands/link_flags.h"
 #include "apps/commands/live_commands.h"
 #include "apps/commands/set_flags.h"
-#include "hw/io/durable_file.h"
-#include "hw/io/run_dir_guard.h"
-#include "hw/io/run_record.h"
+#include "formats/durable_file.h"
+#include "formats/run_dir_guard.h"
+#include "formats/run_record.h"
 #include "imaging/igtl/ingest.h"
 #include "imaging/io/async_sequence_writer.h"
 #include "imaging/io/recording.h"
@@ -104,20 +104,21 @@ struct TrackArgs {
 };
 
 // run.json of the replayed recording's RUN directory, when the file lies in one.
-hw::RunInfo ReplayInfo(const fs::path& file) {
-  hw::RunInfo info;
+formats::RunInfo ReplayInfo(const fs::path& file) {
+  formats::RunInfo info;
+  info.meta.source = "echoservo track --replay";
+  info.meta.replay_of = file.string();
+  info.meta.time_base = formats::RunTimeBase::kRecording;
   const fs::path dir = file.parent_path().empty() ? fs::path(".") : file.parent_path();
-  nlohmann::json meta = {{"source", "echoservo track --replay"}, {"replay_of", file.string()}};
   if (fs::exists(dir / "run.json")) {
-    const hw::RunRecord recorded = hw::ReadRunRecord(dir);
+    const formats::RunRecord recorded = formats::ReadRunRecord(dir);
     info.heart_rate_hz = recorded.info.heart_rate_hz;
     info.standoff_mm = recorded.info.standoff_mm;
-    const auto m = nlohmann::json::parse(recorded.info.metadata_json, nullptr, false);
-    if (m.is_object() && m.contains("em_to_image")) meta["em_to_image"] = m["em_to_image"];
-    if (m.is_object() && m.contains("time_base")) meta["time_base"] = m["time_base"];
+    info.meta.em_to_image = recorded.info.meta.em_to_image;
+    if (recorded.info.meta.time_base != formats::RunTimeBase::kUnstated)
+      info.meta.time_base = recorded.info.meta.time_base;
+    info.meta.pipeline_to_unix_s = recorded.info.meta.pipeline_to_unix_s;
   }
-  if (!meta.contains("time_base")) meta["time_base"] = "recording";
-  info.metadata_json = meta.dump();
   return info;
 }
 
@@ -169,10 +170,10 @@ void RunTrack(const TrackArgs& a) {
     to = settings.tracker;
   }
   // A run that fails leaves no half-written RUN behind, so the same command can be retried.
-  hw::RunDirGuard run_guard(a.out);
-  std::unique_ptr<hw::RunWriter> writer;
+  formats::RunDirGuard run_guard(a.out);
+  std::unique_ptr<formats::RunWriter> writer;
   if (!a.out.empty()) {
-    hw::RunInfo info;
+    formats::RunInfo info;
     if (replay) {
       info = ReplayInfo(a.replay);
     } else {
@@ -180,17 +181,13 @@ void RunTrack(const TrackArgs& a) {
       // The clock of the run's times (docs/report.md#the-run-directory): --sim's pipeline
       // clock (s since the run's start), or --connect's system clock (s since the Unix epoch:
       // the scanner's stamps on a shared clock, else the arrival times).
-      info.metadata_json = nlohmann::json{
-          {"source", a.sim ? "echoservo track --sim" : "echoservo track --connect"},
-          {"time_base",
-           a.sim ? "pipeline"
-                 : "unix"}}.dump();
+      info.meta.source = a.sim ? "echoservo track --sim" : "echoservo track --connect";
+      info.meta.time_base = a.sim ? formats::RunTimeBase::kPipeline : formats::RunTimeBase::kUnix;
+      if (a.sim) info.meta.seed = a.seed;
     }
     // The settings used, every parameter by name (`echoservo tune params`).
-    nlohmann::json meta = nlohmann::json::parse(info.metadata_json);
-    meta["settings"] = nlohmann::json::parse(live::SettingsJson(settings));
-    info.metadata_json = meta.dump();
-    writer = std::make_unique<hw::RunWriter>(a.out, info);
+    info.meta.settings = live::AllValues(settings);
+    writer = std::make_unique<formats::RunWriter>(a.out, info);
   }
   // The EM stream writes to `writer`: stopped before the writer goes, however this is left.
   struct StopEm {
@@ -367,7 +364,7 @@ void RunTrack(const TrackArgs& a) {
   if (recorder) {  // what is queued is written, then synced
     recorder->Close();
     rs = recorder->stats();
-    hw::ReplaceFileContents(fs::path(a.out) / "volumes.json", recorder->SummaryJson());
+    formats::ReplaceFileContents(fs::path(a.out) / "volumes.json", recorder->SummaryJson());
     if (!rs.error.empty())
       std::fprintf(stderr, "track: volume recording stopped: %s\n", rs.error.c_str());
     if (rs.dropped > 0)

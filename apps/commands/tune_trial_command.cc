@@ -17,7 +17,7 @@
 
 #include "apps/commands/set_flags.h"
 #include "apps/commands/tune_commands.h"
-#include "hw/io/durable_file.h"
+#include "formats/durable_file.h"
 #include "tune/trial.h"
 
 namespace echoservo::apps {
@@ -80,7 +80,7 @@ void TuneTrialRun(const TuneTrialArgs& a) {
       r.status = "failed";
       r.reason = e.what();
     }
-    hw::ReplaceFileContents(a.out, tune::ResultToJson(r));
+    formats::ReplaceFileContents(a.out, tune::ResultToJson(r));
     if (a.json) std::cout << tune::ResultToJson(r) << "\n";
     if (r.status != "ok") {
       std::cerr << "tune trial: failed: " << r.reason << "\n";
@@ -103,7 +103,7 @@ void TuneTrialRun(const TuneTrialArgs& a) {
   if (!a.keep.empty()) trace.emplace();
   const tune::TrialResult r = tune::RunTrial(req, trace ? &*trace : nullptr);
   if (trace) tune::WriteTrialTrace(*trace, a.keep);
-  if (!a.out.empty()) hw::ReplaceFileContents(a.out, tune::ResultToJson(r));
+  if (!a.out.empty()) formats::ReplaceFileContents(a.out, tune::ResultToJson(r));
   if (a.json) {
     std::cout << tune::ResultToJson(r) << "\n";
   } else {

@@ -19,7 +19,7 @@ struct ActivePlant {
 
 }  // namespace
 
-hw::PlantOptions SweepPlant(const SweepOptions& options, const hw::CatheterConfig& config,
+hw::PlantOptions SweepPlant(const SweepOptions& options, const formats::CatheterConfig& config,
                             bool seed_model_default) {
   hw::PlantOptions o = seed_model_default ? hw::SeedModelPlant(config, options.seed)
                                           : hw::SeedCalibratedPlant(config, options.seed);
@@ -30,7 +30,7 @@ hw::PlantOptions SweepPlant(const SweepOptions& options, const hw::CatheterConfi
 std::vector<FrictionConfigResult> RunFrictionSweep(const SweepOptions& options) {
   options.probe.Validate();
   std::vector<FrictionConfigResult> results;
-  for (const hw::CatheterConfig& config : hw::TableOneSweep(options.tip_load_n)) {
+  for (const formats::CatheterConfig& config : hw::TableOneSweep(options.tip_load_n)) {
     ActivePlant p(SweepPlant(options, config, false));
     const ServoConfig servo = SeedServoConfig(p.plant.options(), false);
     FrictionConfigResult r;
@@ -46,7 +46,7 @@ BacklashSweepResult RunBacklashSweep(const SweepOptions& options) {
   options.probe.Validate();
   BacklashSweepResult result;
   double mean = 0.0;
-  for (const hw::CatheterConfig& config : hw::TableOneSweep(options.tip_load_n)) {
+  for (const formats::CatheterConfig& config : hw::TableOneSweep(options.tip_load_n)) {
     ActivePlant p(SweepPlant(options, config, true));
     const ServoConfig servo = SeedServoConfig(p.plant.options(), false);
     BacklashConfigResult r;

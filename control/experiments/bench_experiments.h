@@ -25,7 +25,7 @@ struct SweepOptions {
 };
 
 struct FrictionConfigResult {
-  hw::CatheterConfig config;
+  formats::CatheterConfig config;
   std::vector<FrictionSample> samples;
   FrictionFit fit;
 };
@@ -35,7 +35,7 @@ struct FrictionConfigResult {
 std::vector<FrictionConfigResult> RunFrictionSweep(const SweepOptions& options);
 
 struct BacklashConfigResult {
-  hw::CatheterConfig config;
+  formats::CatheterConfig config;
   double measured_width_mm = 0.0;
   double model_width_mm = 0.0;  // θ·gap
 };
@@ -50,7 +50,7 @@ struct BacklashSweepResult {
 BacklashSweepResult RunBacklashSweep(const SweepOptions& options);
 
 // The plant used by a sweep for one configuration.
-hw::PlantOptions SweepPlant(const SweepOptions& options, const hw::CatheterConfig& config,
+hw::PlantOptions SweepPlant(const SweepOptions& options, const formats::CatheterConfig& config,
                             bool seed_model_default);
 
 }  // namespace echoservo::control

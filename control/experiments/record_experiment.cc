@@ -8,14 +8,14 @@
 #include "control/backlash_compensation.h"
 #include "control/experiments/bench_experiments.h"
 #include "control/experiments/track_experiment.h"
+#include "formats/trial_io.h"
 #include "hw/effect_registry.h"
-#include "hw/io/trial_io.h"
 #include "hw/seed_plant.h"
 
 namespace echoservo::control {
 namespace {
 
-std::string TrialName(std::size_t index, const hw::CatheterConfig& c,
+std::string TrialName(std::size_t index, const formats::CatheterConfig& c,
                       const std::string& trajectory) {
   std::string traj = trajectory;
   for (char& ch : traj) {
@@ -69,7 +69,7 @@ void RecordOptions::Validate() const {
   }
 }
 
-std::vector<hw::CatheterConfig> RecordConfigs(const std::string& name, double tip_load_n) {
+std::vector<formats::CatheterConfig> RecordConfigs(const std::string& name, double tip_load_n) {
   if (name == "lab") {
     // Eight catheters that vary gap, total bend angle and tip load independently, so
     // that effects scaling with each can be told apart (the tip load given is added).
@@ -79,9 +79,9 @@ std::vector<hw::CatheterConfig> RecordConfigs(const std::string& name, double ti
     const Row rows[] = {{1.59, 0.76, 180, 0.0}, {1.59, 0.76, 360, 1.5}, {2.38, 2.23, 180, 1.5},
                         {2.38, 2.23, 360, 0.0}, {2.38, 1.50, 90, 0.5},  {2.38, 1.50, 270, 2.0},
                         {1.59, 1.50, 360, 1.0}, {1.59, 0.76, 90, 3.0}};
-    std::vector<hw::CatheterConfig> out;
+    std::vector<formats::CatheterConfig> out;
     for (const Row& r : rows) {
-      hw::CatheterConfig c;
+      formats::CatheterConfig c;
       c.sheath_id_mm = r.id;
       c.guidewire_od_mm = r.od;
       c.bends = {{0.5 * r.bend_deg, 50.0}, {0.5 * r.bend_deg, 25.0}};
@@ -91,7 +91,7 @@ std::vector<hw::CatheterConfig> RecordConfigs(const std::string& name, double ti
     return out;
   }
   if (name == "seed") {
-    hw::CatheterConfig c = hw::CatheterConfig::SeedEvaluation();
+    formats::CatheterConfig c = formats::CatheterConfig::SeedEvaluation();
     c.tip_load_n = tip_load_n;
     return {c};
   }
@@ -107,7 +107,7 @@ RecordResult RecordDataset(const RecordOptions& o) {
   sweep.seed = o.seed;
   std::size_t index = 0;
   for (double load : o.tip_loads_n) {
-    for (const hw::CatheterConfig& config : RecordConfigs(o.configs, load)) {
+    for (const formats::CatheterConfig& config : RecordConfigs(o.configs, load)) {
       for (const std::string& spec : o.trajectories) {
         hw::PlantOptions plant_options = SweepPlant(sweep, config, false);
         plant_options.seed = o.seed + index;
@@ -133,7 +133,7 @@ RecordResult RecordDataset(const RecordOptions& o) {
         const std::vector<CycleRecord> records =
             RunFixedStep(loop, *reference, *comp, o.duration_s);
 
-        hw::Trial trial;
+        formats::Trial trial;
         trial.name = TrialName(index, config, spec);
         trial.config = config;
         for (const CycleRecord& r : records) {
@@ -144,7 +144,7 @@ RecordResult RecordDataset(const RecordOptions& o) {
           trial.force_n.push_back(r.force_n);
         }
         trial.meta_json = MetaJson(plant_options, spec, o.compensation);
-        hw::WriteTrial(o.out_dir, trial);
+        formats::WriteTrial(o.out_dir, trial);
         result.trials.push_back(trial.name);
         result.samples += trial.size();
         ++index;

@@ -1,6 +1,6 @@
 // `sim record`: runs the simulated catheter through chosen configurations,
 // trajectories and tip loads, with chosen effects, and writes a dataset in the trial
-// format (hw/io/trial_io.h, docs/trial_format.md): one CSV + JSON pair per run.
+// format (formats/trial_io.h, docs/trial_format.md): one CSV + JSON pair per run.
 //
 // The base follows the trajectory through the servo (no compensation unless asked),
 // so base_cmd is the shaped setpoint, base the encoder, tip the tip sensor and force
@@ -13,7 +13,7 @@
 #include <utility>
 #include <vector>
 
-#include "hw/catheter_config.h"
+#include "formats/catheter_config.h"
 
 namespace echoservo::control {
 
@@ -38,6 +38,6 @@ struct RecordResult {
 
 RecordResult RecordDataset(const RecordOptions& options);
 
-std::vector<hw::CatheterConfig> RecordConfigs(const std::string& name, double tip_load_n);
+std::vector<formats::CatheterConfig> RecordConfigs(const std::string& name, double tip_load_n);
 
 }  // namespace echoservo::control

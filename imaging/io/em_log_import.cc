@@ -40,11 +40,11 @@ std::vector<std::string> PlusTrackerTools(const PlusSequence& sequence) {
   return {tools.begin(), tools.end()};
 }
 
-hw::EmLog PlusSequenceToEmLog(const PlusSequence& sequence, const fs::path& source,
-                              const hw::EmImportOptions& options) {
-  hw::EmLog log;
+formats::EmLog PlusSequenceToEmLog(const PlusSequence& sequence, const fs::path& source,
+                                   const formats::EmImportOptions& options) {
+  formats::EmLog log;
   log.source = source;
-  log.format = hw::EmLogFormat::kPlus;
+  log.format = formats::EmLogFormat::kPlus;
   log.sensors = PlusTrackerTools(sequence);
   if (log.sensors.empty()) {
     throw std::invalid_argument(source.string() +
@@ -66,7 +66,7 @@ hw::EmLog PlusSequenceToEmLog(const PlusSequence& sequence, const fs::path& sour
                                 "' (--sensor); the tools are " + ToolList(sequence, log.sensors));
   }
   log.sensor = tool;
-  hw::EmLogAppender append(log, hw::ResolveUnits(source, options, std::nullopt));
+  formats::EmLogAppender append(log, formats::ResolveUnits(source, options, std::nullopt));
   for (std::size_t i = 0; i < sequence.frames.size(); ++i) {
     const SequenceFrame& frame = sequence.frames[i];
     const std::string where = FrameWhere(source, i);
@@ -97,23 +97,24 @@ hw::EmLog PlusSequenceToEmLog(const PlusSequence& sequence, const fs::path& sour
   return log;
 }
 
-hw::EmLog ReadPlusEmLog(const fs::path& path, const hw::EmImportOptions& options) {
+formats::EmLog ReadPlusEmLog(const fs::path& path, const formats::EmImportOptions& options) {
   return PlusSequenceToEmLog(ReadPlusSequence(path), path, options);
 }
 
-hw::EmLog ReadEmLog(const fs::path& path, const hw::EmImportOptions& options) {
-  const hw::EmLogFormat format =
-      options.format == hw::EmLogFormat::kAuto ? hw::DetectEmLogFormat(path) : options.format;
+formats::EmLog ReadEmLog(const fs::path& path, const formats::EmImportOptions& options) {
+  const formats::EmLogFormat format = options.format == formats::EmLogFormat::kAuto
+                                          ? formats::DetectEmLogFormat(path)
+                                          : options.format;
   switch (format) {
-    case hw::EmLogFormat::kPlus:
+    case formats::EmLogFormat::kPlus:
       return ReadPlusEmLog(path, options);
-    case hw::EmLogFormat::kAurora:
-      return hw::ReadAuroraEmLog(path, options);
-    case hw::EmLogFormat::kSim:
-    case hw::EmLogFormat::kAuto:
+    case formats::EmLogFormat::kAurora:
+      return formats::ReadAuroraEmLog(path, options);
+    case formats::EmLogFormat::kSim:
+    case formats::EmLogFormat::kAuto:
       break;
   }
-  return hw::ReadSimEmLog(path, options);
+  return formats::ReadSimEmLog(path, options);
 }
 
 }  // namespace echoservo::imaging

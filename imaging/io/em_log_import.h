@@ -1,6 +1,6 @@
 // EM-tracker logs in any format `echoservo report` reads: PLUS tracked sequences here (they
 // need this module's sequence reader), NDI Aurora CSV exports and the simulated tracker's
-// em.csv through hw/io/em_log.h, whose EmLog they all produce (positions in mm in the
+// em.csv through formats/em_log.h, whose EmLog they all produce (positions in mm in the
 // tracker's frame, times in s on the tracker's clock).
 //
 // PLUS: one sample per frame at its Timestamp (else UnfilteredTimestamp), the translation of
@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "hw/io/em_log.h"
+#include "formats/em_log.h"
 #include "imaging/io/plus_sequence.h"
 
 namespace echoservo::imaging {
@@ -28,12 +28,15 @@ std::vector<std::string> PlusTrackerTools(const PlusSequence& sequence);
 // The tool options.sensor names (with or without the Transform suffix), or the only tool
 // when it is empty; throws std::invalid_argument listing the tools (with their OK frame
 // counts) otherwise.
-hw::EmLog PlusSequenceToEmLog(const PlusSequence& sequence, const std::filesystem::path& source,
-                              const hw::EmImportOptions& options);
+formats::EmLog PlusSequenceToEmLog(const PlusSequence& sequence,
+                                   const std::filesystem::path& source,
+                                   const formats::EmImportOptions& options);
 
-hw::EmLog ReadPlusEmLog(const std::filesystem::path& path, const hw::EmImportOptions& options);
+formats::EmLog ReadPlusEmLog(const std::filesystem::path& path,
+                             const formats::EmImportOptions& options);
 
-// Any format: options.format, or hw::DetectEmLogFormat when it is kAuto.
-hw::EmLog ReadEmLog(const std::filesystem::path& path, const hw::EmImportOptions& options);
+// Any format: options.format, or formats::DetectEmLogFormat when it is kAuto.
+formats::EmLog ReadEmLog(const std::filesystem::path& path,
+                         const formats::EmImportOptions& options);
 
 }  // namespace echoservo::imaging

@@ -3,7 +3,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "hw/io/durable_file.h"
+#include "formats/durable_file.h"
 #include "imaging/io/plus_sequence.h"
 
 namespace echoservo::imaging {
@@ -12,7 +12,7 @@ namespace fs = std::filesystem;
 struct SequenceWriter::State {
   PlusSequence sequence;  // header and frame fields; no pixels
   VolumeGeometry geometry;
-  hw::AppendOnlyFile voxels;
+  formats::AppendOnlyFile voxels;
   bool broken = false;  // an I/O error left the data file's length unknown
 };
 
@@ -40,7 +40,7 @@ void SequenceWriter::Append(const Volume& volume,
     auto s = std::make_unique<State>();
     s->sequence = SequenceFor(volume);
     s->geometry = volume.geometry();
-    s->voxels = hw::AppendOnlyFile(data_path());
+    s->voxels = formats::AppendOnlyFile(data_path());
     state_ = std::move(s);
   } else if (state_->broken) {
     throw std::runtime_error(data_path().string() +
@@ -64,7 +64,7 @@ void SequenceWriter::Append(const Volume& volume,
   }
   try {
     state_->voxels.Append(volume.voxels().data(), volume.voxels().size());
-    hw::ReplaceFileContents(header_path_, header);
+    formats::ReplaceFileContents(header_path_, header);
   } catch (...) {
     frames.pop_back();
     state_->broken = true;

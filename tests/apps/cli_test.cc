@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "formats/trial_io.h"
 #include "hw/effect_registry.h"
-#include "hw/io/trial_io.h"
 #include "tests/test_util/cli_runner.h"
 #include "tests/test_util/sanitizers.h"
 #include "tests/test_util/temp_dir.h"
@@ -112,9 +112,9 @@ TEST(Cli, RecordWritesAReadableDataset) {
   ASSERT_EQ(r.rc, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["trials"].size(), 4u);
-  const std::vector<hw::Trial> trials = hw::ReadDataset(dir.path());
+  const std::vector<formats::Trial> trials = formats::ReadDataset(dir.path());
   ASSERT_EQ(trials.size(), 4u);
-  for (const hw::Trial& t : trials) {
+  for (const formats::Trial& t : trials) {
     EXPECT_EQ(t.size(), 1000u);
     EXPECT_NEAR(t.t_s[1] - t.t_s[0], 1e-3, 1e-12);
     EXPECT_NEAR(t.config.GapMm(), 0.8, 1e-12);

@@ -12,8 +12,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "hw/io/run_dir_guard.h"
-#include "hw/io/run_record.h"
+#include "formats/run_dir_guard.h"
+#include "formats/run_record.h"
 #include "tests/test_util/cli_runner.h"
 #include "tests/test_util/temp_dir.h"
 
@@ -115,13 +115,13 @@ TEST(DemoCli, BadOptionsAreClearErrors) {
   EXPECT_NE(r.err.find("--delay"), std::string::npos) << r.err;
 }
 
-// The RUN directory of a run that fails (demo, track --replay): hw::RunDirGuard removes
+// The RUN directory of a run that fails (demo, track --replay): formats::RunDirGuard removes
 // what the process created so that the retry with the same --out works, and never what was
 // there before.
 void FailedRun(const fs::path& run, const char* extra_file = nullptr) {
   try {
-    hw::RunDirGuard guard(run);
-    hw::RunWriter writer(run, hw::RunInfo{});
+    formats::RunDirGuard guard(run);
+    formats::RunWriter writer(run, formats::RunInfo{});
     writer.AddTarget({});
     if (extra_file != nullptr) std::ofstream(run / extra_file) << "partial\n";
     throw std::runtime_error("the recording cannot be read");
@@ -136,8 +136,8 @@ TEST(DemoCli, FailedRunLeavesNoHalfWrittenRunSoTheRetryWorks) {
   EXPECT_FALSE(fs::exists(dir.path() / "runs")) << "the folders the run created are removed";
   EXPECT_TRUE(fs::exists(dir.path()));
   {  // the retry writes the RUN and keeps it
-    hw::RunDirGuard guard(run);
-    hw::RunWriter writer(run, hw::RunInfo{});
+    formats::RunDirGuard guard(run);
+    formats::RunWriter writer(run, formats::RunInfo{});
     writer.AddTarget({});
     writer.Flush();
     guard.Keep();
@@ -164,7 +164,7 @@ TEST(DemoCli, FailedRunInAUserFolderRemovesOnlyWhatItCreated) {
   // A path that is a file is not the guard's: it is left alone.
   const fs::path file = dir.path() / "file";
   std::ofstream(file) << "x";
-  { hw::RunDirGuard guard(file); }
+  { formats::RunDirGuard guard(file); }
   EXPECT_TRUE(fs::exists(file));
 }
 

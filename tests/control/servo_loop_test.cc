@@ -31,7 +31,7 @@ using testing::kNaN;
 // A plant placed on the reference's start and activated, and a loop on it.
 struct Rig {
   explicit Rig(const Trajectory& reference, ServoConfig config = {}, bool use_seed_config = true)
-      : options(hw::SeedModelPlant(hw::CatheterConfig::SeedEvaluation())), plant(options) {
+      : options(hw::SeedModelPlant(formats::CatheterConfig::SeedEvaluation())), plant(options) {
     plant.ResetTo(reference.Evaluate(0.0).position_mm);
     plant.Configure();
     plant.Activate();
@@ -105,7 +105,7 @@ class SquareWave final : public Trajectory {
 
 TEST(ServoLoopTest, NeverCommandsAForceBeyondTheLimit) {
   const SquareWave square;
-  const hw::PlantOptions options = hw::SeedModelPlant(hw::CatheterConfig::SeedEvaluation());
+  const hw::PlantOptions options = hw::SeedModelPlant(formats::CatheterConfig::SeedEvaluation());
   const ServoConfig seed = SeedServoConfig(options, true);
   for (double pid_limit_factor : {1.0, 4.0}) {
     // Factor 4: the PID may ask for more than the limiter allows; the limiter clamps
@@ -282,7 +282,7 @@ TEST(ServoLoopTest, RunRealtimeWithStopAlreadySetRunsNoCycle) {
 
 TEST(ServoLoopTest, ConfigValidation) {
   const SineTrajectory sine(5.0, 0.5);
-  const hw::PlantOptions options = hw::SeedModelPlant(hw::CatheterConfig::SeedEvaluation());
+  const hw::PlantOptions options = hw::SeedModelPlant(formats::CatheterConfig::SeedEvaluation());
   hw::SimulatedCatheter plant(options);
   plant.Configure();
   plant.Activate();

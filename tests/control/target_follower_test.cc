@@ -141,7 +141,7 @@ TEST(TargetFollower, StaleEstimateHoldsThenRetractsAndAFreshOneResumes) {
   // The first cycle past the watchdog holds the tip where it is.
   f.Update(0.2005, 1.25);
   EXPECT_EQ(f.mode(), FollowerMode::kHolding);
-  EXPECT_TRUE(f.faults() & follower_fault::kStaleEstimate);
+  EXPECT_TRUE(f.faults() & fault::kStaleEstimate);
   EXPECT_DOUBLE_EQ(f.Evaluate(0.2005).position_mm, 1.25);
   // Retraction after retract_after_s, at retract_speed, by retract_mm.
   for (t = 0.201; t < 0.5; t += 0.001) f.Update(t, 1.25);
@@ -216,7 +216,7 @@ TEST(TargetFollower, ReferenceIsClampedToTheTravelLimits) {
   const MotionSample m = f.Evaluate(0.01);
   EXPECT_DOUBLE_EQ(m.position_mm, 2.0);
   EXPECT_DOUBLE_EQ(m.velocity_mm_s, 0.0);
-  EXPECT_TRUE(f.faults() & follower_fault::kTravelLimit);
+  EXPECT_TRUE(f.faults() & fault::kTravelLimit);
 }
 
 TEST(TargetFollower, ConfigIsValidated) {
@@ -303,7 +303,7 @@ LoopRun RunLoop(const FollowerConfig& cfg, double amplitude_mm, double duration_
           std::max(r.max_offset_change_mm, std::abs(f.offset_mm() - first_offset));
     }
     f.Update(t, tip);
-    const bool faulted = f.faults() & follower_fault::kImageNotResponding;
+    const bool faulted = f.faults() & fault::kImageNotResponding;
     if (faulted && r.fault_s < 0) {
       r.fault_s = t;
       r.offset_at_fault_mm = f.offset_mm();
@@ -433,7 +433,7 @@ TEST(TargetFollowerResponse, EnableClearsTheFaultAndTheCheckJudgesAfresh) {
       ASSERT_EQ(faults_at.size(), 1u);
       EXPECT_EQ(f.mode(), FollowerMode::kRetracting);
       f.Enable(t);  // the operator re-arms
-      EXPECT_FALSE(f.faults() & follower_fault::kImageNotResponding);
+      EXPECT_FALSE(f.faults() & fault::kImageNotResponding);
       EXPECT_FALSE(f.response().judged);
       EXPECT_EQ(f.mode(), FollowerMode::kFollowing);
     }
@@ -474,7 +474,7 @@ TEST(TargetFollower, TravelBitFollowsTheClampAndClearsWhenTheReferenceReturns) {
     f.Update(t, 0.0);
     const double want = Target(t) - 3.0 - 30.0;
     EXPECT_EQ(f.reference_clamped(), want > 8.0) << t;
-    EXPECT_EQ((f.faults() & follower_fault::kTravelLimit) != 0, want > 8.0) << t;
+    EXPECT_EQ((f.faults() & fault::kTravelLimit) != 0, want > 8.0) << t;
     clamped += f.reference_clamped();
   }
   // 7 + 5·cos(2π·1.2·t) > 8 while t < acos(0.2)/(2π·1.2) = 0.1816 s: 181 of the cycles.
@@ -513,7 +513,7 @@ TEST(TargetFollowerDeadline, AHoldKeepsTheTipUntilClearedAndFreshEstimatesDoNotE
   f.Update(0.1, 1.1);
   f.DeadlineHold(0.1);
   EXPECT_EQ(f.mode(), FollowerMode::kHolding);
-  EXPECT_TRUE(f.faults() & follower_fault::kDeadlineHold);
+  EXPECT_TRUE(f.faults() & fault::kDeadlineHold);
   // The reference stays at the tip of the hold, whatever the tip does and however often the
   // hold is asked for again.
   for (double t = 0.101; t < 0.2; t += 0.001) {
@@ -529,7 +529,7 @@ TEST(TargetFollowerDeadline, AHoldKeepsTheTipUntilClearedAndFreshEstimatesDoNotE
   // Cleared: following again, at once.
   f.DeadlineCleared(0.2);
   EXPECT_EQ(f.mode(), FollowerMode::kFollowing);
-  EXPECT_FALSE(f.faults() & follower_fault::kDeadlineHold);
+  EXPECT_FALSE(f.faults() & fault::kDeadlineHold);
   EXPECT_NEAR(f.Evaluate(0.201).position_mm, Target(0.201) - 3.0 - f.offset_mm(), 1e-9);
   EXPECT_EQ(f.counters().stale_events, 0u);
   f.DeadlineCleared(0.21);  // nothing to clear: no effect
@@ -546,8 +546,8 @@ TEST(TargetFollowerDeadline, ARetractionMovesBackByRetractMmAtRetractSpeedFromNo
   f.Update(0.1, 1.25);
   f.DeadlineRetract(0.1);
   EXPECT_EQ(f.mode(), FollowerMode::kRetracting);
-  EXPECT_TRUE(f.faults() & follower_fault::kDeadlineRetract);
-  EXPECT_FALSE(f.faults() & follower_fault::kRetracted);  // that is the stale path's bit
+  EXPECT_TRUE(f.faults() & fault::kDeadlineRetract);
+  EXPECT_FALSE(f.faults() & fault::kRetracted);  // that is the stale path's bit
   EXPECT_DOUBLE_EQ(f.Evaluate(0.1).position_mm, 1.25);
   const MotionSample m = f.Evaluate(0.15);
   EXPECT_NEAR(m.position_mm, 1.25 - 20.0 * 0.05, 1e-9);
@@ -562,10 +562,10 @@ TEST(TargetFollowerDeadline, ARetractionMovesBackByRetractMmAtRetractSpeedFromNo
   f.DeadlineCleared(0.4);
   f.Update(0.4, 0.5);
   EXPECT_EQ(f.mode(), FollowerMode::kRetracting);
-  EXPECT_TRUE(f.faults() & follower_fault::kDeadlineRetract);
+  EXPECT_TRUE(f.faults() & fault::kDeadlineRetract);
   f.Enable(0.4);
   EXPECT_EQ(f.mode(), FollowerMode::kFollowing);
-  EXPECT_FALSE(f.faults() & (follower_fault::kDeadlineRetract | follower_fault::kDeadlineHold));
+  EXPECT_FALSE(f.faults() & (fault::kDeadlineRetract | fault::kDeadlineHold));
 }
 
 TEST(TargetFollowerDeadline, ARetractionDuringAHoldStartsAtOnceFromTheHeldTip) {
@@ -576,8 +576,7 @@ TEST(TargetFollowerDeadline, ARetractionDuringAHoldStartsAtOnceFromTheHeldTip) {
   UpdateUntil(f, 0.1, 0.12, 1.3);  // the tip drifts; the hold stays at 1.0
   f.DeadlineRetract(0.12);
   EXPECT_EQ(f.mode(), FollowerMode::kRetracting);
-  EXPECT_EQ(f.faults() & (follower_fault::kDeadlineHold | follower_fault::kDeadlineRetract),
-            follower_fault::kDeadlineRetract);
+  EXPECT_EQ(f.faults() & (fault::kDeadlineHold | fault::kDeadlineRetract), fault::kDeadlineRetract);
   EXPECT_DOUBLE_EQ(f.Evaluate(0.12).position_mm, 1.0);
   EXPECT_NEAR(f.Evaluate(0.17).position_mm, 1.0 - 20.0 * 0.05, 1e-9);
   EXPECT_NEAR(f.Evaluate(1.0).position_mm, 1.0 - 4.0, 1e-12);
@@ -591,8 +590,7 @@ TEST(TargetFollowerDeadline, ClearedWithAStaleEstimateHoldsOnAsStaleAndRetractsA
   UpdateUntil(f, 0.1, 0.35, 1.0);  // the estimate (received at 0) is stale from 0.2 s
   f.DeadlineCleared(0.35);
   EXPECT_EQ(f.mode(), FollowerMode::kHolding);
-  EXPECT_EQ(f.faults() & (follower_fault::kDeadlineHold | follower_fault::kStaleEstimate),
-            follower_fault::kStaleEstimate);
+  EXPECT_EQ(f.faults() & (fault::kDeadlineHold | fault::kStaleEstimate), fault::kStaleEstimate);
   EXPECT_EQ(f.counters().stale_events, 1u);
   // The hold began at 0.1 s: the stale path retracts at 0.4 s, from 1.0 mm.
   UpdateUntil(f, 0.35, 0.399, 1.0);
@@ -609,7 +607,7 @@ TEST(TargetFollowerDeadline, ADisabledOrStoppedFollowerOnlyGetsTheFaultBits) {
   idle.DeadlineRetract(0.001);
   idle.Update(0.5, 2.0);
   EXPECT_EQ(idle.mode(), FollowerMode::kDisabled);
-  EXPECT_EQ(idle.faults(), follower_fault::kDeadlineRetract);
+  EXPECT_EQ(idle.faults(), fault::kDeadlineRetract);
   EXPECT_DOUBLE_EQ(idle.Evaluate(0.5).position_mm, 2.0);
 
   TargetFollower stopped = DeadlineFollower(FollowerConfig{});
@@ -617,7 +615,7 @@ TEST(TargetFollowerDeadline, ADisabledOrStoppedFollowerOnlyGetsTheFaultBits) {
   stopped.Stop(0.05);
   stopped.DeadlineRetract(0.06);
   EXPECT_EQ(stopped.mode(), FollowerMode::kStopped);
-  EXPECT_TRUE(stopped.faults() & follower_fault::kDeadlineRetract);
+  EXPECT_TRUE(stopped.faults() & fault::kDeadlineRetract);
   EXPECT_DOUBLE_EQ(stopped.Evaluate(1.0).position_mm, 0.7);
 }
 

@@ -1,5 +1,5 @@
-// Fuzz target: the trial reader (hw/io/trial_io.h, hw/io/csv_table.h): a trial CSV and its sibling
-// JSON, as `echoservo lab` reads a dataset, and a catheter configuration file
+// Fuzz target: the trial reader (formats/trial_io.h, formats/csv_table.h): a trial CSV and its
+// sibling JSON, as `echoservo lab` reads a dataset, and a catheter configuration file
 // (ReadCatheterConfig, `sim track --catheter FILE.json`).
 //
 // Input: the JSON, a NUL byte, then the CSV (no NUL: the whole input is the CSV and the JSON
@@ -15,10 +15,10 @@
 #include <string_view>
 #include <vector>
 
-#include "hw/io/trial_io.h"
+#include "formats/trial_io.h"
 #include "tests/fuzz/fuzz_util.h"
 
-namespace hw = echoservo::hw;
+namespace formats = echoservo::formats;
 
 namespace {
 
@@ -45,11 +45,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const auto& json_path = scratch.Write(".json", json);
   const auto& csv_path = scratch.Write(".csv", csv);  // same stem: the trial's sibling JSON
   try {
-    (void)hw::ReadCatheterConfig(json_path);
+    (void)formats::ReadCatheterConfig(json_path);
   } catch (const std::invalid_argument&) {
   }
   try {
-    const hw::Trial trial = hw::ReadTrial(csv_path);
+    const formats::Trial trial = formats::ReadTrial(csv_path);
     const std::size_t n = trial.size();
     if (trial.base_cmd_mm.size() != n || trial.base_mm.size() != n || trial.tip_mm.size() != n ||
         trial.force_n.size() != n || trial.extra_columns.size() != trial.extra_names.size())

@@ -232,7 +232,7 @@ TEST(CustomEffect, RegistrationRejectsDuplicatesAndMisnamedFactories) {
 
 TEST(CustomEffect, ModelExposesQualifiedParametersWithDefaults) {
   TransmissionModel m(Registry(), ParseModelSpec("seed+seal_preload_friction", Registry()),
-                      CatheterConfig::SeedEvaluation());
+                      formats::CatheterConfig::SeedEvaluation());
   ASSERT_TRUE(m.HasEffect("seal_preload_friction"));
   const std::vector<ParameterInfo>& info = m.parameter_info();
   ASSERT_EQ(info.size(), 5u);  // f0_n, mu_tip, b_n_per_mm_s, then the seal's two
@@ -259,13 +259,13 @@ TEST(CustomEffect, ModelExposesQualifiedParametersWithDefaults) {
 // An effect that overrides only its per-sample hook gets whole-trial hooks that agree.
 TEST(CustomEffect, WholeTrialHooksFallBackToThePerSampleHook) {
   TransmissionModel m(Registry(), ParseModelSpec("seed+seal_preload_friction", Registry()),
-                      CatheterConfig::SeedEvaluation());
+                      formats::CatheterConfig::SeedEvaluation());
   m.SetParameter("seal_preload_friction.preload_n", 6.0);
   ExpectWholeTrialHooksMatchPerSample(m);
 }
 
 TEST(CustomEffect, AddsMuTimesPreloadToThePipelineFriction) {
-  CatheterConfig g = CatheterConfig::SeedEvaluation();
+  formats::CatheterConfig g = formats::CatheterConfig::SeedEvaluation();
   g.tip_load_n = 1.5;
   for (const auto& [preload, mu] : std::vector<std::pair<double, double>>{
            {kDefaultPreloadN, kDefaultMuSeal}, {6.0, 0.25}, {0.0, 0.15}}) {

@@ -89,10 +89,11 @@ TEST_F(EffectFileTest, FileViscousFrictionPredictsAsTheBuiltin) {
   ExpectSamePrediction(builtin, file);
   ExpectSamePrediction(builtin, signal);
   TransmissionModel m(registry_, {"coulomb_friction", "file_viscous"},
-                      CatheterConfig::SeedEvaluation());
+                      formats::CatheterConfig::SeedEvaluation());
   EXPECT_FALSE(m.UsesSignals());
   ExpectWholeTrialHooksMatchPerSample(m);
-  TransmissionModel s(registry_, {"file_viscous_signal"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel s(registry_, {"file_viscous_signal"},
+                      formats::CatheterConfig::SeedEvaluation());
   EXPECT_TRUE(s.UsesSignals());
 }
 

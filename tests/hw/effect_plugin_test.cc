@@ -46,18 +46,18 @@ TEST(EffectPlugin, RegistersItsEffectAfterTheBuiltins) {
   EXPECT_EQ(r.Names().back(), "quadratic_drag");
   EXPECT_EQ(r.Source("quadratic_drag"), "");
   TransmissionModel m(r, ParseModelSpec("seed+quadratic_drag", r),
-                      CatheterConfig::SeedEvaluation());
-  TransmissionModel seed(r, SeedEffects(), CatheterConfig::SeedEvaluation());
+                      formats::CatheterConfig::SeedEvaluation());
+  TransmissionModel seed(r, SeedEffects(), formats::CatheterConfig::SeedEvaluation());
   EXPECT_NEAR(m.FrictionMagnitudeN(20.0) - seed.FrictionMagnitudeN(20.0), 1e-5 * 400.0, 1e-15);
   EXPECT_EQ(m.FrictionLevelN(), seed.FrictionLevelN());
 }
 
 lab::LabDataset DragDataset(double c) {
-  std::vector<Trial> trials;
+  std::vector<formats::Trial> trials;
   for (const double amplitude : {3.0, 6.0}) {
-    Trial t;
+    formats::Trial t;
     t.name = "sine" + std::to_string(static_cast<int>(amplitude));
-    t.config = CatheterConfig::SeedEvaluation();
+    t.config = formats::CatheterConfig::SeedEvaluation();
     for (int i = 0; i < 1500; ++i) {
       const double ts = 1e-3 * i;
       const double x = amplitude * std::sin(2.0 * std::numbers::pi * 1.5 * ts);
@@ -72,7 +72,7 @@ lab::LabDataset DragDataset(double c) {
   lab::LabDataset ds = lab::PrepareLabDataset(std::move(trials));
   // The measured channels are the exact model prediction with drag c.
   TransmissionModel m(WithPlugin(), {"coulomb_friction", "quadratic_drag"},
-                      CatheterConfig::SeedEvaluation());
+                      formats::CatheterConfig::SeedEvaluation());
   m.SetParameter("quadratic_drag.c_n_per_mm2_s2", c);
   for (lab::LabTrial& lt : ds.trials) {
     lab::Prediction p;

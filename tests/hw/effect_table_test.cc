@@ -264,7 +264,7 @@ TEST_F(EffectTableTest, EvaluationFollowsTheCurrentParameterValues) {
   // Through a model, by qualified name, as the lab's fit sets them.
   EffectRegistry r = EffectRegistry::WithBuiltinEffects();
   RegisterEffectSpec(r, Spec("speed_table", {Shape2()}, {{"friction_n", "shape_2"}}));
-  CatheterConfig config = CatheterConfig::SeedEvaluation();
+  formats::CatheterConfig config = formats::CatheterConfig::SeedEvaluation();
   TransmissionModel m(r, {"speed_table"}, config);
   const double bend = m.config().TotalBendRad() * 180.0 / std::numbers::pi;
   ASSERT_GE(bend, 90.0);

@@ -44,9 +44,9 @@ class ScratchFileTest : public ::testing::Test {
 // A 2 s, 1 kHz trial of a ±4 mm 0.8 Hz sine starting at t = 0.5 s (so that time_s = t − t0
 // differs from t), with a square-wave force and the tip following the base.
 inline lab::LabTrial SineTrial() {
-  Trial t;
+  formats::Trial t;
   t.name = "sine";
-  t.config = CatheterConfig::SeedEvaluation();
+  t.config = formats::CatheterConfig::SeedEvaluation();
   for (int i = 0; i < 2000; ++i) {
     const double ts = 0.5 + 1e-3 * i;
     const double w = 2.0 * std::numbers::pi * 0.8;

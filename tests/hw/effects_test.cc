@@ -33,9 +33,9 @@ const EffectRegistry& BuiltinCatalog() {
   return registry;
 }
 
-CatheterConfig Geometry(double sheath_id_mm, double guidewire_od_mm, std::vector<double> bends_deg,
-                        double tip_load_n) {
-  CatheterConfig c;
+formats::CatheterConfig Geometry(double sheath_id_mm, double guidewire_od_mm,
+                                 std::vector<double> bends_deg, double tip_load_n) {
+  formats::CatheterConfig c;
   c.sheath_id_mm = sheath_id_mm;
   c.guidewire_od_mm = guidewire_od_mm;
   for (double a : bends_deg) c.bends.push_back({a, 30.0});
@@ -204,7 +204,8 @@ TEST(CoulombFriction, ConstantPlusTipLoadTerm) {
 }
 
 TEST(ViscousFriction, ProportionalToSpeed) {
-  TransmissionModel m(BuiltinCatalog(), {"viscous_friction"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"viscous_friction"},
+                      formats::CatheterConfig::SeedEvaluation());
   const double b = 0.02;
   m.SetParameter("viscous_friction.b_n_per_mm_s", b);
   EXPECT_DOUBLE_EQ(m.FrictionLevelN(), 0.0);  // no force at rest
@@ -216,7 +217,8 @@ TEST(ViscousFriction, ProportionalToSpeed) {
 }
 
 TEST(StribeckFriction, FullAtRestFadesAboveTheStribeckSpeed) {
-  TransmissionModel m(BuiltinCatalog(), {"stribeck_friction"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"stribeck_friction"},
+                      formats::CatheterConfig::SeedEvaluation());
   const double df = 0.8;
   const double vs = 4.0;
   m.SetParameter("stribeck_friction.delta_static_n", df);
@@ -241,7 +243,7 @@ TEST(CapstanFriction, MultipliesAllFrictionByExpMuTheta) {
   const double mu = 0.25;
   for (const std::vector<double>& bends :
        {std::vector<double>{}, {45.0}, {90.0, 90.0}, {180.0, 90.0, 90.0}, {360.0, 360.0}}) {
-    const CatheterConfig g = Geometry(1.6, 0.8, bends, 0.0);
+    const formats::CatheterConfig g = Geometry(1.6, 0.8, bends, 0.0);
     const double theta = g.TotalBendRad();
     TransmissionModel m(BuiltinCatalog(),
                         {"coulomb_friction", "viscous_friction", "capstan_friction"}, g);
@@ -255,7 +257,8 @@ TEST(CapstanFriction, MultipliesAllFrictionByExpMuTheta) {
     EXPECT_NEAR(m.FrictionLevelN(), f0 * std::exp(mu * theta), 1e-12);
   }
   // On its own it scales nothing: no friction to amplify.
-  TransmissionModel alone(BuiltinCatalog(), {"capstan_friction"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel alone(BuiltinCatalog(), {"capstan_friction"},
+                          formats::CatheterConfig::SeedEvaluation());
   EXPECT_DOUBLE_EQ(alone.FrictionMagnitudeN(10.0), 0.0);
   // Hook: the factor itself.
   const auto e = BuiltinCatalog().Create("capstan_friction");
@@ -267,7 +270,8 @@ TEST(CapstanFriction, MultipliesAllFrictionByExpMuTheta) {
 }
 
 TEST(GuidewireCompliance, DriveIsBaseMinusForceOverStiffness) {
-  TransmissionModel m(BuiltinCatalog(), {"guidewire_compliance"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"guidewire_compliance"},
+                      formats::CatheterConfig::SeedEvaluation());
   for (double k : {0.5, 5.0, 200.0}) {
     m.SetParameter("guidewire_compliance.k_n_per_mm", k);
     for (double base : {-10.0, 0.0, 12.5}) {
@@ -284,7 +288,7 @@ TEST(Backlash, WidthIsThetaTimesGap) {
   for (const auto& [sheath, wire] : {std::pair{1.6, 0.8}, {1.2, 0.9}, {3.0, 0.5}}) {
     for (const std::vector<double>& bends :
          {std::vector<double>{}, {30.0}, {90.0, 90.0}, {120.0, 60.0, 45.0}}) {
-      const CatheterConfig g = Geometry(sheath, wire, bends, 0.0);
+      const formats::CatheterConfig g = Geometry(sheath, wire, bends, 0.0);
       TransmissionModel m(BuiltinCatalog(), {"backlash"}, g);
       double theta_deg = 0.0;
       for (double a : bends) theta_deg += a;
@@ -293,7 +297,7 @@ TEST(Backlash, WidthIsThetaTimesGap) {
     }
   }
   // The seed evaluation catheter: θ = π, gap 0.8 mm.
-  TransmissionModel seed(BuiltinCatalog(), {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel seed(BuiltinCatalog(), {"backlash"}, formats::CatheterConfig::SeedEvaluation());
   EXPECT_NEAR(seed.BacklashWidthMm(), std::numbers::pi * 0.8, 1e-12);
   // Width does not depend on friction.
   TransmissionModel loaded(BuiltinCatalog(), {"coulomb_friction", "backlash"},
@@ -305,7 +309,7 @@ TEST(FrictionBacklash, WidthGrowsWithTheFrictionLevel) {
   const double a = 0.5;
   const double bpn = 0.2;
   for (double load : {0.0, 1.0, 5.0, 20.0}) {
-    const CatheterConfig g = Geometry(1.6, 0.8, {90.0, 90.0}, load);
+    const formats::CatheterConfig g = Geometry(1.6, 0.8, {90.0, 90.0}, load);
     TransmissionModel m(BuiltinCatalog(), {"coulomb_friction", "friction_backlash"}, g);
     m.SetParameter("friction_backlash.a", a);
     m.SetParameter("friction_backlash.b_per_n", bpn);
@@ -319,7 +323,7 @@ TEST(FrictionBacklash, WidthGrowsWithTheFrictionLevel) {
   TransmissionModel s(
       BuiltinCatalog(),
       {"coulomb_friction", "viscous_friction", "stribeck_friction", "friction_backlash"},
-      CatheterConfig::SeedEvaluation());
+      formats::CatheterConfig::SeedEvaluation());
   const double level =
       s.GetParameter("coulomb_friction.f0_n") + s.GetParameter("stribeck_friction.delta_static_n");
   EXPECT_NEAR(s.BacklashWidthMm(),
@@ -328,14 +332,15 @@ TEST(FrictionBacklash, WidthGrowsWithTheFrictionLevel) {
                    s.GetParameter("friction_backlash.b_per_n") * level),
               1e-12);
   // Without any friction effect only the zero-friction factor a remains.
-  TransmissionModel bare(BuiltinCatalog(), {"friction_backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel bare(BuiltinCatalog(), {"friction_backlash"},
+                         formats::CatheterConfig::SeedEvaluation());
   EXPECT_NEAR(bare.BacklashWidthMm(),
               std::numbers::pi * 0.8 * bare.GetParameter("friction_backlash.a"), 1e-12);
 }
 
 TEST(FrictionBacklash, ReplacesTheGeometricWidthInPipelineOrder) {
   const Names effects = ParseModelSpec("seed+friction_backlash", BuiltinCatalog());
-  TransmissionModel m(BuiltinCatalog(), effects, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), effects, formats::CatheterConfig::SeedEvaluation());
   const double factor = m.GetParameter("friction_backlash.a") +
                         m.GetParameter("friction_backlash.b_per_n") * m.FrictionLevelN();
   EXPECT_NEAR(m.BacklashWidthMm(), std::numbers::pi * 0.8 * factor, 1e-12);
@@ -347,16 +352,16 @@ TEST(DeadzoneTraversal, TimeConstantFromItsParameter) {
   const double p[] = {0.07};
   EXPECT_DOUBLE_EQ(e->TraversalTimeConstantS(p), 0.07);
   TransmissionModel m(BuiltinCatalog(), {"backlash", "deadzone_traversal"},
-                      CatheterConfig::SeedEvaluation());
+                      formats::CatheterConfig::SeedEvaluation());
   m.SetParameter("deadzone_traversal.tau_s", 0.035);
   EXPECT_DOUBLE_EQ(m.TraversalTimeConstantS(), 0.035);
-  TransmissionModel none(BuiltinCatalog(), {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel none(BuiltinCatalog(), {"backlash"}, formats::CatheterConfig::SeedEvaluation());
   EXPECT_DOUBLE_EQ(none.TraversalTimeConstantS(), 0.0);
 }
 
 TEST(DeadzoneTraversal, OneTimeConstantClosesSixtyThreePercentOfTheGap) {
   TransmissionModel m(BuiltinCatalog(), {"backlash", "deadzone_traversal"},
-                      CatheterConfig::SeedEvaluation());
+                      formats::CatheterConfig::SeedEvaluation());
   const double tau = 0.02;
   m.SetParameter("deadzone_traversal.tau_s", tau);
   const double half = 0.5 * m.BacklashWidthMm();
@@ -380,7 +385,7 @@ TEST(DeadzoneTraversal, OneTimeConstantClosesSixtyThreePercentOfTheGap) {
 
 TEST(DeadzoneTraversal, InsideTheBandTheTipDoesNotMove) {
   for (const Names& effects : {Names{"backlash"}, Names{"backlash", "deadzone_traversal"}}) {
-    TransmissionModel m(BuiltinCatalog(), effects, CatheterConfig::SeedEvaluation());
+    TransmissionModel m(BuiltinCatalog(), effects, formats::CatheterConfig::SeedEvaluation());
     const double half = 0.5 * m.BacklashWidthMm();
     for (double offset : {-0.99, -0.5, 0.0, 0.3, 0.99}) {
       const double tip = 2.0 + offset * half;
@@ -391,12 +396,13 @@ TEST(DeadzoneTraversal, InsideTheBandTheTipDoesNotMove) {
 }
 
 TEST(DeadzoneTraversal, WithoutItTheTipJumpsToTheBandEdge) {
-  TransmissionModel m(BuiltinCatalog(), {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"backlash"}, formats::CatheterConfig::SeedEvaluation());
   const double half = 0.5 * m.BacklashWidthMm();
   EXPECT_DOUBLE_EQ(m.StepTip(0.0, 5.0, 1e-4), 5.0 - half);
   EXPECT_DOUBLE_EQ(m.StepTip(0.0, -5.0, 1e-4), -5.0 + half);
   // And with no deadzone at all the tip is the drive.
-  TransmissionModel rigid(BuiltinCatalog(), {"coulomb_friction"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel rigid(BuiltinCatalog(), {"coulomb_friction"},
+                          formats::CatheterConfig::SeedEvaluation());
   EXPECT_DOUBLE_EQ(rigid.StepTip(0.0, 5.0, 1e-4), 5.0);
   EXPECT_DOUBLE_EQ(rigid.StepTip(3.0, -1.25, 1e-4), -1.25);
 }
@@ -406,7 +412,8 @@ TEST(SensorDelay, DelayFromItsParameter) {
   const double p[] = {0.012};
   EXPECT_DOUBLE_EQ(e->SensorDelayS(p), 0.012);
   EXPECT_DOUBLE_EQ(e->SensorScale(p), 1.0);
-  TransmissionModel m(BuiltinCatalog(), {"sensor_delay"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"sensor_delay"},
+                      formats::CatheterConfig::SeedEvaluation());
   m.SetParameter("sensor_delay.delay_s", 0.03);
   EXPECT_DOUBLE_EQ(m.SensorDelayS(), 0.03);
   EXPECT_DOUBLE_EQ(m.SensorScale(), 1.0);
@@ -417,7 +424,8 @@ TEST(TipSensorScale, GainFromItsParameter) {
   const double p[] = {0.9};
   EXPECT_DOUBLE_EQ(e->SensorScale(p), 0.9);
   EXPECT_DOUBLE_EQ(e->SensorDelayS(p), 0.0);
-  TransmissionModel m(BuiltinCatalog(), {"tip_sensor_scale"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(BuiltinCatalog(), {"tip_sensor_scale"},
+                      formats::CatheterConfig::SeedEvaluation());
   m.SetParameter("tip_sensor_scale.scale", 1.2);
   EXPECT_DOUBLE_EQ(m.SensorScale(), 1.2);
   EXPECT_DOUBLE_EQ(m.SensorDelayS(), 0.0);

@@ -53,9 +53,9 @@ EffectRegistry Registry(double v0) {
 
 // A 1 s, 1 kHz ramp at `v` mm/s from -15 mm, at rest force.
 lab::LabTrial RampTrial(double v) {
-  Trial t;
+  formats::Trial t;
   t.name = "ramp";
-  t.config = CatheterConfig::SeedEvaluation();
+  t.config = formats::CatheterConfig::SeedEvaluation();
   for (int i = 0; i < 1000; ++i) {
     const double ts = 1e-3 * i;
     t.t_s.push_back(ts);
@@ -105,7 +105,7 @@ TEST(SignalBacklashTest, HugeLiftOffSpeedPredictsAndSimulatesAsTheStaticSeed) {
   // v0 = 1e12 mm/s: at the sine's 20 mm/s the width grows by 2.5e-11 mm. (With v0 = 1e9 it
   // would grow by up to ½·θ·gap·|v|/v0 ≈ 2.5e-8 mm, above 1e-9; checked against that bound.)
   const EffectRegistry r = Registry(1e12);
-  TransmissionModel m(r, lift, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(r, lift, formats::CatheterConfig::SeedEvaluation());
   EXPECT_TRUE(m.UsesSignalBacklash());
   EXPECT_FALSE(m.UsesSignals());
   EXPECT_EQ(m.BacklashWidthMm(), TransmissionModel(r, seed, m.config()).BacklashWidthMm());
@@ -198,7 +198,7 @@ TEST(SignalBacklashTest, GeometryOnlyWidthStaysStatic) {
   EXPECT_FALSE(effect->UsesSignalBacklash());
   EXPECT_FALSE(effect->UsesSignals());
   EXPECT_EQ(effect->stage(), EffectStage::kBacklash);
-  TransmissionModel m(r, {"backlash", "wide"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(r, {"backlash", "wide"}, formats::CatheterConfig::SeedEvaluation());
   EXPECT_FALSE(m.UsesSignalBacklash());
   EXPECT_NEAR(m.BacklashWidthMm(), kSeedWidthMm * (1.0 + 0.8 / 60.0), 1e-12);
   const SampleSignals fast{0.7, 3.0, -80.0, 500.0};
@@ -210,11 +210,11 @@ TEST(SignalBacklashTest, GeometryOnlyWidthStaysStatic) {
   const auto lift = r.Create("lift_off");
   EXPECT_TRUE(lift->UsesSignalBacklash());
   EXPECT_FALSE(lift->UsesSignals());
-  const EffectContext c = EffectContext::From(CatheterConfig::SeedEvaluation());
+  const EffectContext c = EffectContext::From(formats::CatheterConfig::SeedEvaluation());
   const double p = 60.0;
   EXPECT_EQ(lift->BacklashWidthMm(2.0, 0.3, c, &p), 2.0);
   EXPECT_NEAR(lift->SignalBacklashWidthMm(2.0, 0.3, fast, c, &p), 2.0 * (1.0 + 80.0 / 60.0), 1e-12);
-  TransmissionModel l(r, {"backlash", "lift_off"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel l(r, {"backlash", "lift_off"}, formats::CatheterConfig::SeedEvaluation());
   EXPECT_TRUE(l.UsesSignalBacklash());
   EXPECT_EQ(l.BacklashWidthMm(), kSeedWidthMm);
   EXPECT_NEAR(l.BacklashWidthMm(fast), kSeedWidthMm * (1.0 + 80.0 / 60.0), 1e-12);
@@ -231,11 +231,12 @@ TEST(SignalBacklashTest, TableAlongSpeedAndNegativeWidthsAndWholeTrialForm) {
       "expressions": {"backlash_width_mm": "width_mm*gain"}})j",
                                         "tabled.json"));
   RegisterEffectSpec(r, Spec("shrink", "width_mm - 0.05*v0_mm_s*velocity_mm_s"));
-  TransmissionModel m(r, {"backlash", "tabled"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(r, {"backlash", "tabled"}, formats::CatheterConfig::SeedEvaluation());
   EXPECT_TRUE(m.UsesSignalBacklash());
   EXPECT_NEAR(m.BacklashWidthMm(SampleSignals{0.0, 0.0, -50.0, 0.0}), 2.0 * kSeedWidthMm, 1e-12);
 
-  TransmissionModel s(r, {"backlash", "tabled", "shrink"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel s(r, {"backlash", "tabled", "shrink"},
+                      formats::CatheterConfig::SeedEvaluation());
   // At +1 mm/s: π·0.8·1.02 − 3 < 0 → 0; at −1 mm/s: π·0.8·1.02 + 3.
   EXPECT_EQ(s.BacklashWidthMm(SampleSignals{0.0, 0.0, 1.0, 0.0}), 0.0);
   EXPECT_NEAR(s.BacklashWidthMm(SampleSignals{0.0, 0.0, -1.0, 0.0}), kSeedWidthMm * 1.02 + 3.0,
@@ -248,7 +249,7 @@ TEST(SignalBacklashTest, TableAlongSpeedAndNegativeWidthsAndWholeTrialForm) {
   for (std::size_t i = 0; i < t.size(); ++i)
     EXPECT_EQ(widths[i], s.BacklashWidthMm(sig.At(i))) << i;
   // Without signal backlash every sample has the static width.
-  TransmissionModel plain(r, {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel plain(r, {"backlash"}, formats::CatheterConfig::SeedEvaluation());
   plain.BacklashWidthsMm(sig, widths);
   for (const double w : widths) EXPECT_EQ(w, plain.BacklashWidthMm());
 }

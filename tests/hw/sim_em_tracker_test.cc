@@ -25,7 +25,7 @@ TEST(SimEmTracker, SamplesAtItsRateOnItsClockInItsFrameWithTheSetNoiseAndDropout
   int valid = 0;
   for (int k = 0; k < n; ++k) {
     EXPECT_NEAR(em.next_sample_s(), 2.0 + k / 40.0, 1e-9);
-    const EmSample r = em.Sample(tip);
+    const formats::EmSample r = em.Sample(tip);
     EXPECT_NEAR(r.t_s, 2.5 + k / 40.0, 1e-9);
     if (!r.valid) continue;
     ++valid;

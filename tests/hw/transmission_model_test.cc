@@ -27,7 +27,8 @@ const EffectRegistry& Builtins() {
   return registry;
 }
 
-TransmissionModel FullCatalog(const CatheterConfig& config = CatheterConfig::SeedEvaluation()) {
+TransmissionModel FullCatalog(
+    const formats::CatheterConfig& config = formats::CatheterConfig::SeedEvaluation()) {
   return TransmissionModel(Builtins(), Builtins().Names(), config);
 }
 
@@ -102,7 +103,7 @@ TEST(TransmissionModel, SetParameterAcceptsTheBoundsAndRejectsBeyond) {
 
 TEST(TransmissionModel, UnknownParameterNamesThrow) {
   TransmissionModel m(Builtins(), {"coulomb_friction", "backlash"},
-                      CatheterConfig::SeedEvaluation());
+                      formats::CatheterConfig::SeedEvaluation());
   // Unqualified, misspelt, or of an effect that is not in this model.
   for (const std::string name : {"f0_n", "coulomb_friction.f0", "coulomb_friction.",
                                  "viscous_friction.b_n_per_mm_s", "backlash.width", ""}) {
@@ -113,7 +114,7 @@ TEST(TransmissionModel, UnknownParameterNamesThrow) {
 
 TEST(TransmissionModel, SetParametersChecksSizeAndValues) {
   TransmissionModel m(Builtins(), {"coulomb_friction", "viscous_friction", "backlash"},
-                      CatheterConfig::SeedEvaluation());
+                      formats::CatheterConfig::SeedEvaluation());
   ASSERT_EQ(m.parameters().size(), 3u);
   const std::string msg = InvalidArgumentMessage([&] { m.set_parameters({1.0, 0.1}); });
   ExpectContains(msg, "expected 3");
@@ -129,7 +130,7 @@ TEST(TransmissionModel, SetParametersChecksSizeAndValues) {
   EXPECT_DOUBLE_EQ(m.FrictionLevelN(), 2.0);  // the derived quantities follow
   EXPECT_NEAR(m.FrictionMagnitudeN(10.0), 2.0 + 0.1, 1e-12);
   // A parameterless model takes an empty vector.
-  TransmissionModel b(Builtins(), {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel b(Builtins(), {"backlash"}, formats::CatheterConfig::SeedEvaluation());
   EXPECT_NO_THROW(b.set_parameters({}));
   EXPECT_THROW(b.set_parameters({0.0}), std::invalid_argument);
 }
@@ -137,25 +138,25 @@ TEST(TransmissionModel, SetParametersChecksSizeAndValues) {
 TEST(TransmissionModel, ConstructorRejectsUnknownDuplicateAndBadGeometry) {
   ExpectContains(InvalidArgumentMessage([] {
                    TransmissionModel(Builtins(), {"coulomb_friction", "sticky"},
-                                     CatheterConfig::SeedEvaluation());
+                                     formats::CatheterConfig::SeedEvaluation());
                  }),
                  "'sticky'");
-  ExpectContains(
-      InvalidArgumentMessage([] {
-        TransmissionModel(Builtins(), {"backlash", "backlash"}, CatheterConfig::SeedEvaluation());
-      }),
-      "'backlash'");
-  CatheterConfig bad = CatheterConfig::SeedEvaluation();
+  ExpectContains(InvalidArgumentMessage([] {
+                   TransmissionModel(Builtins(), {"backlash", "backlash"},
+                                     formats::CatheterConfig::SeedEvaluation());
+                 }),
+                 "'backlash'");
+  formats::CatheterConfig bad = formats::CatheterConfig::SeedEvaluation();
   bad.guidewire_od_mm = 2.0;
   ExpectContains(InvalidArgumentMessage([&] { TransmissionModel(Builtins(), {"backlash"}, bad); }),
                  "guidewire_od_mm");
-  TransmissionModel m(Builtins(), {"backlash"}, CatheterConfig::SeedEvaluation());
+  TransmissionModel m(Builtins(), {"backlash"}, formats::CatheterConfig::SeedEvaluation());
   EXPECT_THROW(m.set_config(bad), std::invalid_argument);
   EXPECT_NEAR(m.BacklashWidthMm(), std::numbers::pi * 0.8, 1e-12);  // unchanged
 }
 
 TEST(TransmissionModel, EmptyModelIsAnIdealTransmission) {
-  const TransmissionModel m(Builtins(), {}, CatheterConfig::SeedEvaluation());
+  const TransmissionModel m(Builtins(), {}, formats::CatheterConfig::SeedEvaluation());
   EXPECT_TRUE(m.parameters().empty());
   EXPECT_EQ(m.FrictionMagnitudeN(20.0), 0.0);
   EXPECT_EQ(m.FrictionLevelN(), 0.0);
@@ -167,7 +168,7 @@ TEST(TransmissionModel, EmptyModelIsAnIdealTransmission) {
 }
 
 TEST(TransmissionModel, FullCatalogComposesEveryStage) {
-  CatheterConfig g = CatheterConfig::SeedEvaluation();
+  formats::CatheterConfig g = formats::CatheterConfig::SeedEvaluation();
   g.tip_load_n = 2.0;
   const TransmissionModel m = FullCatalog(g);
   auto p = [&](const char* name) { return m.GetParameter(name); };
@@ -197,7 +198,7 @@ TEST(TransmissionModel, FullCatalogComposesEveryStage) {
 // The lab predicts whole trials through the batched hooks; the simulator steps per sample.
 // Both must be the same model, for every catalog effect and for the seed alone.
 TEST(TransmissionModel, WholeTrialHooksEqualThePerSampleCalls) {
-  CatheterConfig g = CatheterConfig::SeedEvaluation();
+  formats::CatheterConfig g = formats::CatheterConfig::SeedEvaluation();
   g.tip_load_n = 2.0;
   ExpectWholeTrialHooksMatchPerSample(FullCatalog(g));
   ExpectWholeTrialHooksMatchPerSample(
@@ -207,8 +208,8 @@ TEST(TransmissionModel, WholeTrialHooksEqualThePerSampleCalls) {
 
 TEST(TransmissionModel, SetConfigRefreshesTheDerivedQuantities) {
   TransmissionModel m(Builtins(), {"coulomb_friction", "capstan_friction", "backlash"},
-                      CatheterConfig::SeedEvaluation());
-  CatheterConfig g = CatheterConfig::SeedEvaluation();
+                      formats::CatheterConfig::SeedEvaluation());
+  formats::CatheterConfig g = formats::CatheterConfig::SeedEvaluation();
   g.bends = {{45.0, 20.0}};
   g.tip_load_n = 4.0;
   g.sheath_id_mm = 1.4;

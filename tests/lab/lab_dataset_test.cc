@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "hw/io/trial_io.h"
+#include "formats/trial_io.h"
 #include "tests/test_util/expect_error.h"
 #include "tests/test_util/temp_dir.h"
 #include "tests/test_util/trial_files.h"
@@ -41,8 +41,8 @@ using echoservo::testing::MissingJsonSidecar;
 using echoservo::testing::MissingLastColumn;
 using echoservo::testing::TempDir;
 
-hw::CatheterConfig Config() {
-  hw::CatheterConfig c;
+formats::CatheterConfig Config() {
+  formats::CatheterConfig c;
   c.sheath_id_mm = 2.38;
   c.guidewire_od_mm = 1.50;
   c.bends = {{90.0, 50.0}, {90.0, 25.0}};
@@ -51,9 +51,9 @@ hw::CatheterConfig Config() {
 }
 
 // A trial sampled at 1 kHz whose base follows `base(t)`; tip and force are smooth.
-hw::Trial MakeTrial(const std::string& name, std::size_t n,
-                    const std::function<double(double)>& base) {
-  hw::Trial t;
+formats::Trial MakeTrial(const std::string& name, std::size_t n,
+                         const std::function<double(double)>& base) {
+  formats::Trial t;
   t.name = name;
   t.config = Config();
   for (std::size_t i = 0; i < n; ++i) {
@@ -127,8 +127,8 @@ TEST(PrepareLabDataset, VelocityOfARampIsExact) {
 }
 
 TEST(PrepareLabDataset, FitIndexTakesEveryStrideThSample) {
-  std::vector<hw::Trial> trials = {MakeTrial("a", 1001, [](double t) { return t; }),
-                                   MakeTrial("b", 10, [](double t) { return t; })};
+  std::vector<formats::Trial> trials = {MakeTrial("a", 1001, [](double t) { return t; }),
+                                        MakeTrial("b", 10, [](double t) { return t; })};
   LabDatasetOptions o;
   o.stride = 4;
   const LabDataset ds = PrepareLabDataset(trials, o);
@@ -179,10 +179,10 @@ TEST(PrepareLabDataset, MayStickAroundAReversalOnly) {
 
 TEST(PrepareLabDataset, NoiseIsTheMedianOverTrials) {
   std::mt19937_64 rng(3);
-  std::vector<hw::Trial> trials;
+  std::vector<formats::Trial> trials;
   for (double sigma : {0.01, 0.02, 0.05}) {
     std::normal_distribution<double> normal(0.0, sigma);
-    hw::Trial t = MakeTrial(std::to_string(sigma), 5000, [](double x) { return std::sin(x); });
+    formats::Trial t = MakeTrial(std::to_string(sigma), 5000, [](double x) { return std::sin(x); });
     for (double& v : t.tip_mm) v += normal(rng);
     for (double& v : t.force_n) v += 0.1 * normal(rng);
     trials.push_back(std::move(t));
@@ -199,7 +199,8 @@ class LoadLabDatasetBad : public ::testing::TestWithParam<BadTrial> {
   // Three good trials and one ("trial_1_bad") corrupted.
   void Write(const fs::path& dir) const {
     for (const char* name : {"trial_0", "trial_1_bad", "trial_2", "trial_3"}) {
-      hw::WriteTrial(dir, MakeTrial(name, 300, [](double t) { return 4.0 * std::sin(5.0 * t); }));
+      formats::WriteTrial(dir,
+                          MakeTrial(name, 300, [](double t) { return 4.0 * std::sin(5.0 * t); }));
     }
     GetParam().corrupt(dir / "trial_1_bad.csv");
   }
@@ -211,7 +212,7 @@ TEST_P(LoadLabDatasetBad, ThrowsNamingTheFileUnlessSkipped) {
   try {
     LoadLabDataset(dir.path());
     ADD_FAILURE() << "no error for " << GetParam().name;
-  } catch (const hw::TrialFormatError& e) {
+  } catch (const formats::TrialFormatError& e) {
     ExpectContains(e.what(), "trial_1_bad");
     for (const std::string& part : GetParam().expected) ExpectContains(e.what(), part);
   }
@@ -231,14 +232,14 @@ TEST_P(LoadLabDatasetBad, ThrowsNamingTheFileUnlessSkipped) {
 
 TEST_P(LoadLabDatasetBad, AllBadThrowsEvenWhenSkipping) {
   TempDir dir("lab_dataset", /*create=*/true);
-  hw::WriteTrial(dir.path(), MakeTrial("trial_1_bad", 300, [](double t) { return t; }));
+  formats::WriteTrial(dir.path(), MakeTrial("trial_1_bad", 300, [](double t) { return t; }));
   GetParam().corrupt(dir.path() / "trial_1_bad.csv");
   LabDatasetOptions o;
   o.skip_bad = true;
   try {
     LoadLabDataset(dir.path(), o);
     ADD_FAILURE() << "no error for an all-bad dataset";
-  } catch (const hw::TrialFormatError& e) {
+  } catch (const formats::TrialFormatError& e) {
     ExpectContains(e.what(), "no valid trial");
     ExpectContains(e.what(), "1 skipped");
   }
@@ -272,7 +273,7 @@ TEST(LoadLabDataset, MissingFolderNamesIt) {
     try {
       LoadLabDataset(missing, o);
       ADD_FAILURE() << "no error";
-    } catch (const hw::TrialFormatError& e) {
+    } catch (const formats::TrialFormatError& e) {
       ExpectContains(e.what(), "echoservo_no_such_dataset_folder");
       ExpectContains(e.what(), "not found");
     }

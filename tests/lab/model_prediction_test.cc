@@ -35,8 +35,8 @@ constexpr double kF0 = 0.55;
 constexpr double kMuTip = 0.3;
 constexpr double kViscous = 0.006;
 
-hw::CatheterConfig PredictionConfig() {
-  hw::CatheterConfig c;
+formats::CatheterConfig PredictionConfig() {
+  formats::CatheterConfig c;
   c.sheath_id_mm = 2.38;
   c.guidewire_od_mm = 1.50;
   c.bends = {{90.0, 50.0}, {90.0, 25.0}};  // θ = π, deadzone B = π·0.88 mm
@@ -49,7 +49,7 @@ double Omega() { return 2.0 * std::numbers::pi * kFrequencyHz; }
 // A noise-free trial whose base is `base(t)` at 1 kHz; the measured force sweeps
 // ±2.5 N (inside and beyond the breakaway level) so the stick band's clamp shows.
 LabTrial MakeTrial(const std::function<double(double)>& base, double duration_s = 3.0) {
-  hw::Trial t;
+  formats::Trial t;
   t.name = "hand_made";
   t.config = PredictionConfig();
   const auto n = static_cast<std::size_t>(std::lround(duration_s * 1000.0));

@@ -80,15 +80,11 @@ TEST(ServoNodeMapping, FollowerModesAndFaultsMapOntoTheStateTopic) {
   EXPECT_EQ(ToLinkMode(control::FollowerMode::kHolding), link::ServoMode::kHolding);
   EXPECT_EQ(ToLinkMode(control::FollowerMode::kRetracting), link::ServoMode::kRetracting);
   EXPECT_EQ(ToLinkMode(control::FollowerMode::kStopped), link::ServoMode::kStopped);
-  EXPECT_EQ(ToLinkFaults(control::follower_fault::kStaleEstimate), link::fault::kStaleEstimate);
-  EXPECT_EQ(ToLinkFaults(control::follower_fault::kRejectedEstimate),
-            link::fault::kInvalidEstimate);
-  EXPECT_EQ(ToLinkFaults(control::follower_fault::kTravelLimit), link::fault::kTravelLimit);
-  EXPECT_EQ(ToLinkFaults(control::follower_fault::kImageNotResponding),
-            link::fault::kImageNotResponding);
-  EXPECT_EQ(
-      ToLinkFaults(control::follower_fault::kStopRequested | control::follower_fault::kRetracted),
-      0u);
+  EXPECT_EQ(ToLinkFaults(control::fault::kStaleEstimate), link::fault::kStaleEstimate);
+  EXPECT_EQ(ToLinkFaults(control::fault::kInvalidEstimate), link::fault::kInvalidEstimate);
+  EXPECT_EQ(ToLinkFaults(control::fault::kTravelLimit), link::fault::kTravelLimit);
+  EXPECT_EQ(ToLinkFaults(control::fault::kImageNotResponding), link::fault::kImageNotResponding);
+  EXPECT_EQ(ToLinkFaults(control::fault::kStopRequested | control::fault::kRetracted), 0u);
 }
 
 TEST(ServoNode, FollowsAfterEnableThenHoldsAndRetractsWhenEstimatesStop) {

@@ -13,8 +13,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "hw/io/em_log.h"
-#include "hw/io/run_record.h"
+#include "formats/em_log.h"
+#include "formats/run_record.h"
 #include "tests/test_util/browser.h"
 #include "tests/test_util/expect_error.h"
 #include "tests/test_util/synthetic_run.h"
@@ -30,14 +30,14 @@ using testing::SyntheticRun;
 using testing::TempDir;
 
 struct Computed {
-  hw::RunRecord run;
+  formats::RunRecord run;
   report::AccuracyMetrics m;
 };
 
 Computed Compute(const SyntheticRun& s, const TempDir& dir) {
   testing::WriteSyntheticRun(s, dir.path());
-  Computed c{hw::ReadRunRecord(dir.path()), {}};
-  c.m = report::ComputeAccuracy(c.run, hw::ReadSimEmLog(c.run.EmPath(), {}));
+  Computed c{formats::ReadRunRecord(dir.path()), {}};
+  c.m = report::ComputeAccuracy(c.run, formats::ReadSimEmLog(c.run.EmPath(), {}));
   return c;
 }
 
@@ -165,9 +165,9 @@ TEST(AccuracyReport, HtmlIsOneSelfContainedPageWithTheFigures) {
 // An EM log that does not belong to the run is refused, estimated or given transform, with
 // the reason and the numbers; options.force gives the figures with the warnings.
 
-hw::EmLog EmOf(const SyntheticRun& s, const TempDir& dir) {
+formats::EmLog EmOf(const SyntheticRun& s, const TempDir& dir) {
   testing::WriteSyntheticRun(s, dir.path());
-  return hw::ReadSimEmLog(dir.path() / "em.csv", {});
+  return formats::ReadSimEmLog(dir.path() / "em.csv", {});
 }
 
 report::AccuracyOptions GivenTransform(const SyntheticRun& s) {
@@ -196,7 +196,7 @@ TEST(AccuracyChecks, TheRightLogPassesEveryCheck) {
   EXPECT_GT(c.m.checks[3].value, 0.99);
   // Given the true transform: the same figure, the source named.
   const report::AccuracyMetrics g =
-      report::ComputeAccuracy(c.run, hw::ReadSimEmLog(c.run.EmPath(), {}), GivenTransform(s));
+      report::ComputeAccuracy(c.run, formats::ReadSimEmLog(c.run.EmPath(), {}), GivenTransform(s));
   EXPECT_EQ(g.transform_source, "run.json");
   EXPECT_NEAR(g.rms_mm, c.m.rms_mm, 0.02);
 }
@@ -206,12 +206,12 @@ TEST(AccuracyChecks, AnotherMotionsLogIsRefusedWithAGivenTransform) {
   s.duration_s = 10.0;
   const TempDir dir("checks_other"), other_dir("checks_other_em");
   testing::WriteSyntheticRun(s, dir.path());
-  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  const formats::RunRecord run = formats::ReadRunRecord(dir.path());
   SyntheticRun other = s;  // another heartbeat, another breath, same frame and clock
   other.heart_rate_hz = 1.55;
   other.breathing_hz = 0.31;
   other.amplitude_mm = {7.0, 9.0, 3.0};
-  const hw::EmLog em = EmOf(other, other_dir);
+  const formats::EmLog em = EmOf(other, other_dir);
   const std::string why =
       InvalidArgumentMessage([&] { report::ComputeAccuracy(run, em, GivenTransform(s)); });
   ExpectContains(why, "EM log refused");
@@ -241,7 +241,7 @@ TEST(AccuracyChecks, AStillSensorIsRefusedWithAGivenTransform) {
   s.duration_s = 10.0;
   const TempDir dir("checks_still"), still_dir("checks_still_em");
   testing::WriteSyntheticRun(s, dir.path());
-  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  const formats::RunRecord run = formats::ReadRunRecord(dir.path());
   SyntheticRun still = s;
   still.amplitude_mm = Eigen::Vector3d::Zero();
   still.em_noise_mm = 0.02;  // the bench sensors' jitter (docs/report.md)
@@ -261,11 +261,11 @@ TEST(AccuracyChecks, ALogThatStartedLateIsRefused) {
   s.duration_s = 16.0;
   const TempDir dir("checks_late"), late_dir("checks_late_em");
   testing::WriteSyntheticRun(s, dir.path());
-  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  const formats::RunRecord run = formats::ReadRunRecord(dir.path());
   SyntheticRun late = s;
   late.em_lead_s = -2.1;         // from t = 2.1 s
   late.duration_s = 16.0 + 2.1;  // to the end of the run (16 s)
-  const hw::EmLog em = EmOf(late, late_dir);
+  const formats::EmLog em = EmOf(late, late_dir);
   report::AccuracyOptions narrow = GivenTransform(s);
   narrow.alignment.max_offset_s = 1.5;
   const std::string why = InvalidArgumentMessage([&] { report::ComputeAccuracy(run, em, narrow); });
@@ -284,8 +284,8 @@ TEST(AccuracyChecks, AnOffsetOnTheEdgeOfTheSearchWindowFails) {
   s.duration_s = 6.0;
   const TempDir dir("checks_edge");
   testing::WriteSyntheticRun(s, dir.path());
-  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
-  const report::PointSeries em = report::ValidEmPoints(hw::ReadSimEmLog(run.EmPath(), {}));
+  const formats::RunRecord run = formats::ReadRunRecord(dir.path());
+  const report::PointSeries em = report::ValidEmPoints(formats::ReadSimEmLog(run.EmPath(), {}));
   report::PointSeries tip;
   for (const auto& r : run.targets) tip.Add(r.acquired_s, r.tip_mm);
   report::EmAlignment a = report::AlignEmToImage(em, tip);
@@ -305,9 +305,9 @@ TEST(AccuracyWindow, StartsWhenTheServoBeganFollowingUnlessFromIsGiven) {
   s.duration_s = 10.0;
   const TempDir dir("window");
   testing::WriteSyntheticRun(s, dir.path());
-  const hw::EmLog em = hw::ReadSimEmLog(dir.path() / "em.csv", {});
+  const formats::EmLog em = formats::ReadSimEmLog(dir.path() / "em.csv", {});
   // The synthetic servo.csv's modes are "hold" then "track": no following row.
-  report::AccuracyMetrics m = report::ComputeAccuracy(hw::ReadRunRecord(dir.path()), em);
+  report::AccuracyMetrics m = report::ComputeAccuracy(formats::ReadRunRecord(dir.path()), em);
   EXPECT_FALSE(std::isfinite(m.window_from_s));
   EXPECT_EQ(report::WindowText(m), "whole run: servo.csv has no 'following' row");
   // The servo's own label (control/target_follower.cc): following from row 20, t = 2 s.
@@ -317,14 +317,14 @@ TEST(AccuracyWindow, StartsWhenTheServoBeganFollowingUnlessFromIsGiven) {
     if (at != std::string::npos) line.replace(at, 7, ",following,");
   }
   testing::WriteLines(dir.path() / "servo.csv", lines);
-  m = report::ComputeAccuracy(hw::ReadRunRecord(dir.path()), em);
+  m = report::ComputeAccuracy(formats::ReadRunRecord(dir.path()), em);
   EXPECT_DOUBLE_EQ(m.window_from_s, 2.0);
   EXPECT_EQ(report::WindowText(m), "from 2.00 s: servo began following");
   EXPECT_GE(m.t_s.front(), 2.0);
   EXPECT_LT(m.t_s.front(), 2.0 + 2.0 / s.em_rate_hz);
   report::AccuracyOptions o;
   o.from_s = 4.0;
-  m = report::ComputeAccuracy(hw::ReadRunRecord(dir.path()), em, o);
+  m = report::ComputeAccuracy(formats::ReadRunRecord(dir.path()), em, o);
   EXPECT_EQ(report::WindowText(m), "from 4.00 s: --from");
   EXPECT_GE(m.t_s.front(), 4.0);
   const auto j = nlohmann::json::parse(report::AccuracyJson(m, {}));
@@ -332,7 +332,7 @@ TEST(AccuracyWindow, StartsWhenTheServoBeganFollowingUnlessFromIsGiven) {
   EXPECT_EQ(j["window"]["reason"], "--from");
   // No servo.csv: the whole run.
   std::filesystem::remove(dir.path() / "servo.csv");
-  m = report::ComputeAccuracy(hw::ReadRunRecord(dir.path()), em);
+  m = report::ComputeAccuracy(formats::ReadRunRecord(dir.path()), em);
   EXPECT_EQ(report::WindowText(m), "whole run: no servo.csv");
 }
 
@@ -347,8 +347,8 @@ TEST(AccuracyReport, RejectsBadOptions) {
   s.duration_s = 6.0;
   const TempDir dir("accuracy_overlap");
   testing::WriteSyntheticRun(s, dir.path());
-  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
-  hw::EmLog em = hw::ReadSimEmLog(run.EmPath(), {});
+  const formats::RunRecord run = formats::ReadRunRecord(dir.path());
+  formats::EmLog em = formats::ReadSimEmLog(run.EmPath(), {});
   report::AccuracyOptions o;
   o.phase_bins = 0;
   ExpectContains(InvalidArgumentMessage([&] { report::ComputeAccuracy(run, em, o); }),
@@ -362,8 +362,8 @@ TEST(AccuracyReport, AGivenTrackerLagIsUsedNotSearched) {
   s.duration_s = 10.0;
   const TempDir dir("accuracy_tracker_lag");
   testing::WriteSyntheticRun(s, dir.path());
-  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
-  const hw::EmLog em = hw::ReadSimEmLog(run.EmPath(), {});
+  const formats::RunRecord run = formats::ReadRunRecord(dir.path());
+  const formats::EmLog em = formats::ReadSimEmLog(run.EmPath(), {});
   const double d = s.tip_offset_mm.norm();
   report::AccuracyOptions o;
   o.alignment.fixed_offset_s = s.em_clock_offset_s;  // the true lag is −em_clock_offset_s

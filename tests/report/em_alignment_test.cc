@@ -29,7 +29,7 @@ constexpr double kMargin = 4.0;  // tolerance = kMargin × the derived standard 
 
 PointSeries EmSeries(const SyntheticRun& s, double scale = 1.0) {
   PointSeries p;
-  for (const hw::EmSample& e : s.EmSamples()) {
+  for (const formats::EmSample& e : s.EmSamples()) {
     if (e.valid) p.Add(e.t_s, scale * e.position_mm);
   }
   return p;
@@ -37,7 +37,7 @@ PointSeries EmSeries(const SyntheticRun& s, double scale = 1.0) {
 
 PointSeries ImageTips(const SyntheticRun& s) {
   PointSeries p;
-  for (const hw::TargetRecord& r : s.Targets()) {
+  for (const formats::TargetRecord& r : s.Targets()) {
     if (r.found) p.Add(r.acquired_s, r.tip_mm);
   }
   return p;
@@ -75,7 +75,7 @@ double RotationErrorRad(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) 
 // Largest distance between the two transforms' images of the tip positions (in EM frame).
 double MappedErrorMm(const SyntheticRun& s, const Eigen::Isometry3d& est) {
   double worst = 0.0;
-  for (const hw::EmSample& e : s.EmSamples()) {
+  for (const formats::EmSample& e : s.EmSamples()) {
     if (e.valid)
       worst = std::max(worst, (est * e.position_mm - s.em_to_image * e.position_mm).norm());
   }
@@ -170,7 +170,8 @@ TEST(EmAlignment, NamesInchesReadAsMillimetres) {
 TEST(EmAlignment, RefusesAnEmSensorThatDidNotFollowTheTip) {
   SyntheticRun s;
   PointSeries still;
-  for (const hw::EmSample& e : s.EmSamples()) still.Add(e.t_s, Eigen::Vector3d(100, -60, -158));
+  for (const formats::EmSample& e : s.EmSamples())
+    still.Add(e.t_s, Eigen::Vector3d(100, -60, -158));
   ExpectContains(InvalidArgumentMessage([&] { AlignEmToImage(still, ImageTips(s)); }),
                  "the EM sensor hardly moved");
 }

@@ -4,7 +4,7 @@
 // target plus a constant offset, so the true tip-to-target error is |tip_offset_mm| at every
 // instant. The EM tracker sees the tip in its own frame (image_to_em = em_to_image⁻¹) on its
 // own clock (t_em = t − em_clock_offset_s), starting before and ending after the volumes.
-// WriteSyntheticRun writes it as a RUN directory (hw/io/run_record.h). Units: mm, s.
+// WriteSyntheticRun writes it as a RUN directory (formats/run_record.h). Units: mm, s.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -16,8 +16,8 @@
 #include <set>
 #include <vector>
 
-#include "hw/io/em_log.h"
-#include "hw/io/run_record.h"
+#include "formats/em_log.h"
+#include "formats/run_record.h"
 
 namespace echoservo::testing {
 
@@ -74,16 +74,16 @@ struct SyntheticRun {
   double VolumeTime(std::size_t i) const { return static_cast<double>(i) / volume_rate_hz; }
 
   // EM samples on the EM clock, in the EM frame.
-  std::vector<hw::EmSample> EmSamples() const {
+  std::vector<formats::EmSample> EmSamples() const {
     std::mt19937 rng(seed + 1);
     std::normal_distribution<double> noise(0.0, 1.0);
     const Eigen::Isometry3d image_to_em = em_to_image.inverse();
-    std::vector<hw::EmSample> out;
+    std::vector<formats::EmSample> out;
     const double t0 = -em_lead_s, t1 = duration_s + em_lead_s;
     for (std::size_t k = 0;; ++k) {
       const double t = t0 + static_cast<double>(k) / em_rate_hz;
       if (t > t1) break;
-      hw::EmSample s;
+      formats::EmSample s;
       s.t_s = t - em_clock_offset_s;
       s.valid = em_dropout_every == 0 || k % em_dropout_every != 0;
       const Eigen::Vector3d n(noise(rng), noise(rng), noise(rng));
@@ -94,16 +94,16 @@ struct SyntheticRun {
   }
 
   // The tracked volumes (targets.csv rows).
-  std::vector<hw::TargetRecord> Targets() const {
+  std::vector<formats::TargetRecord> Targets() const {
     std::mt19937 rng(seed);
     std::normal_distribution<double> noise(0.0, 1.0);
-    std::vector<hw::TargetRecord> out;
+    std::vector<formats::TargetRecord> out;
     for (std::size_t i = 0; i < Volumes(); ++i) {
       const Eigen::Vector3d n1(noise(rng), noise(rng), noise(rng));
       const Eigen::Vector3d n2(noise(rng), noise(rng), noise(rng));
       if (i >= gap_from && i < gap_to) continue;
       const double t = VolumeTime(i);
-      hw::TargetRecord r;
+      formats::TargetRecord r;
       r.acquired_s = t;
       r.arrived_s = t + 0.030;
       r.published_s = t + 0.042;
@@ -119,19 +119,19 @@ struct SyntheticRun {
 };
 
 inline void WriteSyntheticRun(const SyntheticRun& s, const std::filesystem::path& dir) {
-  hw::RunInfo info;
+  formats::RunInfo info;
   if (s.write_heart_rate) info.heart_rate_hz = s.heart_rate_hz;
   info.notes = "synthetic run (tests/test_util/synthetic_run.h)";
-  hw::RunWriter w(dir, info);
+  formats::RunWriter w(dir, info);
   std::size_t row = 0;
-  for (const hw::TargetRecord& r : s.Targets()) {
+  for (const formats::TargetRecord& r : s.Targets()) {
     w.AddTarget(r);
     if (row < s.latency_rows) {
       w.AddLatency({r.arrived_s, r.arrived_s + 1e-3 * static_cast<double>(row + 1)});
     }
     ++row;
   }
-  for (const hw::EmSample& e : s.EmSamples()) w.AddEm(e);
+  for (const formats::EmSample& e : s.EmSamples()) w.AddEm(e);
   if (s.write_truth) {
     for (std::size_t k = 0;; ++k) {
       const double t = static_cast<double>(k) / s.truth_rate_hz;

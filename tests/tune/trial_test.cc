@@ -17,8 +17,8 @@
 #include <numbers>
 #include <string>
 
-#include "hw/io/em_log.h"
-#include "hw/io/run_record.h"
+#include "formats/em_log.h"
+#include "formats/run_record.h"
 #include "imaging/igtl/phantom_source.h"
 #include "imaging/io/plus_sequence.h"
 #include "imaging/io/truth_fields.h"
@@ -120,15 +120,17 @@ fs::path MakeRun(const fs::path& dir, double standoff_mm) {
   const imaging::PlusSequence seq = imaging::ReadPlusSequence(Recordings() / kSimName);
   fs::create_directories(dir);
   fs::create_symlink(Recordings() / kSimName, dir / "volumes.igs.mhd");
-  hw::RunInfo info;
+  formats::RunInfo info;
   info.standoff_mm = standoff_mm;
-  info.metadata_json = R"({"em_to_image": "1,0,0,0, 0,1,0,0, 0,0,1,0", "time_base": "pipeline"})";
-  hw::RunWriter w(dir, info);
+  info.meta.source = "trial_test";
+  info.meta.em_to_image = Eigen::Isometry3d::Identity();
+  info.meta.time_base = formats::RunTimeBase::kPipeline;
+  formats::RunWriter w(dir, info);
   for (const imaging::SequenceFrame& f : seq.frames) {
     const auto truth = imaging::TruthFromFields(f.fields);
     const double t = f.Timestamp().value();
     w.AddTarget({t, t, t, true, truth->target_mm, truth->tip_mm, truth->axis_direction, 1.0});
-    hw::EmSample e;
+    formats::EmSample e;
     e.t_s = t;
     e.position_mm = truth->target_mm - standoff_mm * truth->axis_direction.normalized();
     e.valid = true;

@@ -33,7 +33,7 @@ TrackResult RunTrack(const std::string& trajectory, const std::string& compensat
 
 // θ·gap of the seed's tracking catheter: two 90° bends, 1.6 mm sheath, 0.8 mm wire.
 double GeometricWidthMm() {
-  const hw::CatheterConfig c = hw::SeedTrackingCatheter();
+  const formats::CatheterConfig c = hw::SeedTrackingCatheter();
   return c.TotalBendRad() * c.GapMm();
 }
 

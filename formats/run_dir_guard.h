@@ -1,4 +1,4 @@
-// A RUN directory (hw/io/run_record.h) that a command is about to write: if the command
+// A RUN directory (formats/run_record.h) that a command is about to write: if the command
 // fails before it calls Keep(), the guard's destructor removes what this process created
 // there, so the same command can be run again with the same --out (a half-written RUN with
 // its run.json would make the retry fail with "run.json exists"). What was there before is
@@ -11,7 +11,7 @@
 #include <system_error>
 #include <utility>
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 
 class RunDirGuard {
  public:
@@ -62,4 +62,4 @@ class RunDirGuard {
   bool kept_ = false;
 };
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 
 enum class EmLogFormat { kAuto, kPlus, kAurora, kSim };
 // "auto", "plus", "aurora", "sim"; throws std::invalid_argument naming the text.
@@ -97,8 +97,8 @@ LengthUnit ResolveUnits(const std::filesystem::path& path, const EmImportOptions
 EmLog ReadAuroraEmLog(const std::filesystem::path& path, const EmImportOptions& options);
 EmLog ReadSimEmLog(const std::filesystem::path& path, const EmImportOptions& options);
 
-// The sim format's header and one row (no newline), as hw/io/run_record.h writes em.csv.
+// The sim format's header and one row (no newline), as formats/run_record.h writes em.csv.
 std::string SimEmLogHeader();
 std::string SimEmLogRow(const EmSample& sample);
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

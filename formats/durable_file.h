@@ -1,7 +1,7 @@
 // File writes that survive the writing process being killed (kill -9, a crash): what a call
 // has returned from is in the kernel, whole, and no reader ever sees a half-replaced file.
 // Power loss is a different matter: SyncData (fdatasync) is what makes data durable across
-// it. Used by the run recorder (hw/io/run_record.h) and the volume recorder
+// it. Used by the run recorder (formats/run_record.h) and the volume recorder
 // (imaging/io/sequence_writer.h). Errors: std::runtime_error naming the file and errno's text.
 #pragma once
 
@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <string_view>
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 
 // An append-only file descriptor. Append hands its bytes to the kernel in one write(2)
 // where the kernel allows (a regular file takes it whole), retrying after signals and
@@ -41,4 +41,4 @@ class AppendOnlyFile {
 // kill) has the old content or the new, never a mix or a truncated file.
 void ReplaceFileContents(const std::filesystem::path& path, std::string_view text);
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

@@ -1,4 +1,4 @@
-#include "hw/io/run_record.h"
+#include "formats/run_record.h"
 
 #include <cmath>
 #include <fstream>
@@ -6,9 +6,9 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "hw/io/csv_table.h"
+#include "formats/csv_table.h"
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 namespace {
 
 namespace fs = std::filesystem;
@@ -88,6 +88,122 @@ Json ParseJsonFile(const fs::path& path, const std::string& missing) {
   }
 }
 
+// The typed metadata keys (formats/run_metadata.h), besides format, version, heart_rate_hz,
+// standoff_mm and notes.
+const char* const kMetaKeys[] = {"source",     "time_base", "em_to_image",        "seed",
+                                 "duration_s", "replay_of", "pipeline_to_unix_s", "settings"};
+
+bool IsReservedKey(const std::string& key) {
+  for (const char* k : {"format", "version", "heart_rate_hz", "standoff_mm", "notes"})
+    if (key == k) return true;
+  for (const char* k : kMetaKeys)
+    if (key == k) return true;
+  return false;
+}
+
+std::string KeyWhere(const fs::path& path, const char* key) {
+  return path.string() + ": key '" + key + "'";
+}
+
+std::string MetaString(const fs::path& path, const Json& j, const char* key) {
+  if (!j.contains(key) || j[key].is_null()) return "";
+  if (!j[key].is_string()) FailFile(path, std::string("key '") + key + "' must be a string");
+  return j[key].get<std::string>();
+}
+
+std::optional<double> MetaNumber(const fs::path& path, const Json& j, const char* key) {
+  if (!j.contains(key) || j[key].is_null()) return std::nullopt;
+  if (!j[key].is_number() || !std::isfinite(j[key].get<double>()))
+    FailFile(path, std::string("key '") + key + "': " + j[key].dump() + " is not a finite number");
+  return j[key].get<double>();
+}
+
+void ReadRunMetadata(const fs::path& path, const Json& j, RunInfo& info) {
+  RunMetadata& m = info.meta;
+  m.source = MetaString(path, j, "source");
+  const std::string base = MetaString(path, j, "time_base");
+  if (base == "pipeline") {
+    m.time_base = RunTimeBase::kPipeline;
+  } else if (base == "unix") {
+    m.time_base = RunTimeBase::kUnix;
+  } else if (base == "recording") {
+    m.time_base = RunTimeBase::kRecording;
+  } else if (!base.empty()) {
+    FailFile(path, "key 'time_base': '" + base + "' is not one of pipeline, unix, recording");
+  }
+  if (j.contains("em_to_image") && !j["em_to_image"].is_null()) {
+    const Json& t = j["em_to_image"];
+    if (t.is_string()) {
+      m.em_to_image = ParseRigidTransform(t.get<std::string>(), KeyWhere(path, "em_to_image"));
+    } else if (t.is_array()) {
+      std::string text;
+      for (const Json& x : t) {
+        if (!x.is_number()) FailFile(path, "key 'em_to_image': " + x.dump() + " is not a number");
+        text += FormatNumber(x.get<double>()) + " ";
+      }
+      m.em_to_image = ParseRigidTransform(text, KeyWhere(path, "em_to_image"));
+    } else {
+      FailFile(path, "key 'em_to_image' must be a string (or an array) of 12 or 16 numbers");
+    }
+  }
+  if (j.contains("seed") && !j["seed"].is_null()) {
+    if (!j["seed"].is_number_unsigned())
+      FailFile(path, "key 'seed': " + j["seed"].dump() + " is not a non-negative integer");
+    m.seed = j["seed"].get<std::uint64_t>();
+  }
+  m.duration_s = MetaNumber(path, j, "duration_s");
+  if (m.duration_s && !(*m.duration_s > 0.0))
+    FailFile(path, "key 'duration_s': " + FormatNumber(*m.duration_s) + " must be > 0 s");
+  m.replay_of = MetaString(path, j, "replay_of");
+  m.pipeline_to_unix_s = MetaNumber(path, j, "pipeline_to_unix_s");
+  if (j.contains("settings") && !j["settings"].is_null()) {
+    if (!j["settings"].is_object())
+      FailFile(path, "key 'settings' must be an object {\"name\": number}");
+    for (const auto& [name, value] : j["settings"].items()) {
+      if (!value.is_number() || !std::isfinite(value.get<double>()))
+        FailFile(path,
+                 "key 'settings': '" + name + "': " + value.dump() + " is not a finite number");
+      m.settings.emplace_back(name, value.get<double>());
+    }
+  }
+  for (const char* key : {"source", "time_base"})
+    if (!j.contains(key))
+      info.warnings.push_back(path.string() + ": no '" + key +
+                              "' (a RUN written before typed metadata): read as before");
+  Json extra = Json::object();
+  for (const auto& [key, value] : j.items())
+    if (!IsReservedKey(key)) extra[key] = value;
+  info.extra_json = extra.dump();
+}
+
+void WriteRunMetadata(const RunInfo& info, Json& j) {
+  const RunMetadata& m = info.meta;
+  if (!m.source.empty()) j["source"] = m.source;
+  if (m.time_base != RunTimeBase::kUnstated) j["time_base"] = std::string(ToString(m.time_base));
+  if (m.em_to_image) j["em_to_image"] = FormatRigidTransform(*m.em_to_image);
+  if (m.seed) j["seed"] = *m.seed;
+  if (m.duration_s) {
+    if (!(*m.duration_s > 0.0) || !std::isfinite(*m.duration_s))
+      throw std::invalid_argument("RunMetadata::duration_s must be finite and > 0 s");
+    j["duration_s"] = *m.duration_s;
+  }
+  if (!m.replay_of.empty()) j["replay_of"] = m.replay_of;
+  if (m.pipeline_to_unix_s) {
+    if (!std::isfinite(*m.pipeline_to_unix_s))
+      throw std::invalid_argument("RunMetadata::pipeline_to_unix_s must be finite");
+    j["pipeline_to_unix_s"] = *m.pipeline_to_unix_s;
+  }
+  if (!m.settings.empty()) {
+    Json s = Json::object();
+    for (const auto& [name, value] : m.settings) {
+      if (!std::isfinite(value))
+        throw std::invalid_argument("RunMetadata::settings: '" + name + "' is not finite");
+      s[name] = value;
+    }
+    j["settings"] = s;
+  }
+}
+
 RunInfo ReadRunJson(const fs::path& path) {
   const Json j = ParseJsonFile(path, " (every RUN directory has a run.json)");
   if (!j.is_object()) FailFile(path, "must be a JSON object");
@@ -120,14 +236,7 @@ RunInfo ReadRunJson(const fs::path& path) {
     if (!j["notes"].is_string()) FailFile(path, "key 'notes' must be a string");
     info.notes = j["notes"].get<std::string>();
   }
-  Json meta = Json::object();
-  for (const auto& [key, value] : j.items()) {
-    if (key != "format" && key != "version" && key != "heart_rate_hz" && key != "notes" &&
-        key != "standoff_mm") {
-      meta[key] = value;
-    }
-  }
-  info.metadata_json = meta.dump();
+  ReadRunMetadata(path, j, info);
   return info;
 }
 
@@ -284,13 +393,13 @@ RunWriter::RunWriter(const fs::path& dir, const RunInfo& info) : dir_(dir) {
   fs::create_directories(dir);
   const fs::path json_path = dir / "run.json";
   if (Exists(json_path)) FailFile(json_path, "already exists: a RUN directory is written once");
-  Json meta;
+  Json extra;
   try {
-    meta = Json::parse(info.metadata_json);
+    extra = Json::parse(info.extra_json);
   } catch (const Json::exception& e) {
-    throw std::invalid_argument(std::string("RunInfo::metadata_json: not valid JSON: ") + e.what());
+    throw std::invalid_argument(std::string("RunInfo::extra_json: not valid JSON: ") + e.what());
   }
-  if (!meta.is_object()) throw std::invalid_argument("RunInfo::metadata_json: not a JSON object");
+  if (!extra.is_object()) throw std::invalid_argument("RunInfo::extra_json: not a JSON object");
   Json j = {{"format", kFormat}, {"version", kVersion}};
   if (info.heart_rate_hz) {
     if (!(*info.heart_rate_hz > 0.0) || *info.heart_rate_hz > kMaxHeartRateHz) {
@@ -304,10 +413,11 @@ RunWriter::RunWriter(const fs::path& dir, const RunInfo& info) : dir_(dir) {
     j["standoff_mm"] = *info.standoff_mm;
   }
   if (!info.notes.empty()) j["notes"] = info.notes;
-  for (const auto& [key, value] : meta.items()) {
-    if (j.contains(key) || key == "heart_rate_hz" || key == "notes" || key == "standoff_mm") {
-      throw std::invalid_argument("RunInfo::metadata_json: key '" + key + "' is reserved");
-    }
+  WriteRunMetadata(info, j);
+  for (const auto& [key, value] : extra.items()) {
+    if (IsReservedKey(key))
+      throw std::invalid_argument("RunInfo::extra_json: key '" + key +
+                                  "' is typed (RunInfo, RunMetadata): set it there");
     j[key] = value;
   }
   std::ofstream out(json_path, std::ios::binary | std::ios::trunc);
@@ -414,4 +524,4 @@ void RunWriter::Flush() {
   }
 }
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

@@ -1,5 +1,5 @@
 // Strict reader of numeric CSV tables with a header line, shared by the trial format
-// (hw/io/trial_io.h) and target-motion traces (estimation/motion_trace.h).
+// (formats/trial_io.h) and target-motion traces (estimation/motion_trace.h).
 //
 // Every cell must be one finite decimal number (NaN and infinity are rejected) except in
 // the columns the spec names as text, every
@@ -14,7 +14,7 @@
 #include <string_view>
 #include <vector>
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 
 // The UTF-8 byte-order mark that spreadsheet programs put before a CSV header.
 inline constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
@@ -67,4 +67,4 @@ void AppendNumber(std::string& out, double v);
 std::string FormatNumber(double v);
 }  // namespace csv
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

@@ -1,8 +1,8 @@
-// EM-tracker log import (hw/io/em_log.h, imaging/io/em_log_import.h) on the real files in
+// EM-tracker log import (formats/em_log.h, imaging/io/em_log_import.h) on the real files in
 // data/ (an NDI Aurora export, PLUS tracked sequences) and on small written files: sample
 // and drop-out counts, sensor choice, units, and the errors for bad input, which must name
 // the file, the line (or frame) and the field.
-#include "hw/io/em_log.h"
+#include "formats/em_log.h"
 
 #include <gtest/gtest.h>
 
@@ -32,13 +32,13 @@ const fs::path kData = ECHOSERVO_DATA_DIR;
 const fs::path kAurora = kData / "em_tracker" / "NDIdata_snakeravenTest_2_2_21.csv";
 const fs::path kPlus = kData / "plus";
 
-hw::EmImportOptions Sensor(const std::string& sensor) {
-  hw::EmImportOptions o;
+formats::EmImportOptions Sensor(const std::string& sensor) {
+  formats::EmImportOptions o;
   o.sensor = sensor;
   return o;
 }
 
-bool StrictlyIncreasing(const hw::EmLog& log) {
+bool StrictlyIncreasing(const formats::EmLog& log) {
   for (std::size_t i = 1; i < log.samples.size(); ++i) {
     if (!(log.samples[i].t_s > log.samples[i - 1].t_s)) return false;
   }
@@ -75,7 +75,7 @@ AuroraCounts CountAurora(std::size_t s) {
 
 TEST(AuroraLog, RealExportCountsSamplesAndAllZeroDropouts) {
   for (std::size_t s = 0; s < 4; ++s) {
-    const hw::EmLog log = hw::ReadAuroraEmLog(kAurora, Sensor(std::to_string(s + 1)));
+    const formats::EmLog log = formats::ReadAuroraEmLog(kAurora, Sensor(std::to_string(s + 1)));
     const AuroraCounts expected = CountAurora(s);
     EXPECT_EQ(log.sensors, (std::vector<std::string>{"a", "b", "c", "d"}));
     EXPECT_EQ(log.sensor, log.sensors[s]);
@@ -93,9 +93,9 @@ TEST(AuroraLog, RealExportCountsSamplesAndAllZeroDropouts) {
   }
   // Sensor by letter is the same as by index; the valid positions are in mm (about 0.1 m
   // from the field generator) and never the zero sentinel.
-  const hw::EmLog b = hw::ReadAuroraEmLog(kAurora, Sensor("B"));
+  const formats::EmLog b = formats::ReadAuroraEmLog(kAurora, Sensor("B"));
   EXPECT_EQ(b.sensor, "b");
-  for (const hw::EmSample& e : b.samples) {
+  for (const formats::EmSample& e : b.samples) {
     if (!e.valid) continue;
     EXPECT_GT(e.position_mm.norm(), 50.0);
     EXPECT_LT(e.position_mm.norm(), 600.0);
@@ -104,24 +104,24 @@ TEST(AuroraLog, RealExportCountsSamplesAndAllZeroDropouts) {
 
 TEST(AuroraLog, SeveralSensorsWithDataNeedAChoice) {
   const std::string msg =
-      InvalidArgumentMessage([] { hw::ReadAuroraEmLog(kAurora, hw::EmImportOptions{}); });
+      InvalidArgumentMessage([] { formats::ReadAuroraEmLog(kAurora, formats::EmImportOptions{}); });
   ExpectContains(msg, kAurora.string());
   ExpectContains(msg, "--sensor");
   ExpectContains(msg, "1 (a, ");
   ExpectContains(msg, "4 (d, ");
-  ExpectContains(InvalidArgumentMessage([] { hw::ReadAuroraEmLog(kAurora, Sensor("e")); }),
+  ExpectContains(InvalidArgumentMessage([] { formats::ReadAuroraEmLog(kAurora, Sensor("e")); }),
                  "no sensor \"e\"");
-  ExpectContains(InvalidArgumentMessage([] { hw::ReadAuroraEmLog(kAurora, Sensor("5")); }),
+  ExpectContains(InvalidArgumentMessage([] { formats::ReadAuroraEmLog(kAurora, Sensor("5")); }),
                  "no sensor \"5\"");
 }
 
 TEST(AuroraLog, InchesMustBeDeclaredAndScaleBy25_4) {
-  hw::EmImportOptions in = Sensor("d");
-  in.units = hw::LengthUnit::kInch;
-  const hw::EmLog mm = hw::ReadAuroraEmLog(kAurora, Sensor("d"));
-  const hw::EmLog inch = hw::ReadAuroraEmLog(kAurora, in);
+  formats::EmImportOptions in = Sensor("d");
+  in.units = formats::LengthUnit::kInch;
+  const formats::EmLog mm = formats::ReadAuroraEmLog(kAurora, Sensor("d"));
+  const formats::EmLog inch = formats::ReadAuroraEmLog(kAurora, in);
   ASSERT_EQ(mm.samples.size(), inch.samples.size());
-  EXPECT_EQ(inch.file_units, hw::LengthUnit::kInch);
+  EXPECT_EQ(inch.file_units, formats::LengthUnit::kInch);
   for (std::size_t i = 0; i < mm.samples.size(); ++i) {
     EXPECT_NEAR((inch.samples[i].position_mm - 25.4 * mm.samples[i].position_mm).norm(), 0.0, 1e-9);
   }
@@ -142,7 +142,7 @@ TEST(AuroraLog, BadRowsNameTheFileLineAndColumn) {
   const std::vector<std::string> lines = ReadLines(kAurora);
   // Line 10 repeats line 9 (its sample number and time).
   fs::path p = AuroraWith(dir, 10, lines[8]);
-  std::string msg = InvalidArgumentMessage([&] { hw::ReadAuroraEmLog(p, Sensor("a")); });
+  std::string msg = InvalidArgumentMessage([&] { formats::ReadAuroraEmLog(p, Sensor("a")); });
   ExpectContains(msg, p.string() + ": line 10");
   ExpectContains(msg, "sample number");
   // The sample numbers in order but the time going back (line 8's).
@@ -150,23 +150,23 @@ TEST(AuroraLog, BadRowsNameTheFileLineAndColumn) {
   back.replace(back.find(','), std::string::npos,
                lines[7].substr(lines[7].find(',')));  // line 8's time and values
   p = AuroraWith(dir, 10, back);
-  msg = InvalidArgumentMessage([&] { hw::ReadAuroraEmLog(p, Sensor("a")); });
+  msg = InvalidArgumentMessage([&] { formats::ReadAuroraEmLog(p, Sensor("a")); });
   ExpectContains(msg, ": line 10: times must be strictly increasing");
   // NaN in a position.
   std::string nan = lines[11];
   nan.replace(nan.find("102."), 8, "nan");
   p = AuroraWith(dir, 12, nan);
-  msg = InvalidArgumentMessage([&] { hw::ReadAuroraEmLog(p, Sensor("a")); });
+  msg = InvalidArgumentMessage([&] { formats::ReadAuroraEmLog(p, Sensor("a")); });
   ExpectContains(msg, ": line 12: column 'Xa': NaN or infinity is not allowed");
   // A short row that is not the last.
   p = AuroraWith(dir, 20, "19, 4 , 15 , 53, 500,");
-  msg = InvalidArgumentMessage([&] { hw::ReadAuroraEmLog(p, Sensor("a")); });
+  msg = InvalidArgumentMessage([&] { formats::ReadAuroraEmLog(p, Sensor("a")); });
   ExpectContains(msg, ": line 20: expected 33 fields (as in the header), found 5");
   // A broken header.
   std::string header = lines[4];
   header.replace(header.find("Ya"), 2, "Yq");
   p = AuroraWith(dir, 5, header);
-  msg = InvalidArgumentMessage([&] { hw::ReadAuroraEmLog(p, Sensor("a")); });
+  msg = InvalidArgumentMessage([&] { formats::ReadAuroraEmLog(p, Sensor("a")); });
   ExpectContains(msg, ": line 5: column 7 of the Aurora header is \"Yq\"; expected 'Ya'");
 }
 
@@ -178,19 +178,19 @@ TEST(AuroraLog, EmptySensorColumnNameIsAHeaderError) {
   std::string header = ReadLines(kAurora)[4];
   header.replace(header.find("Xd"), 2, "");
   const fs::path p = AuroraWith(dir, 5, header);
-  const std::string msg = InvalidArgumentMessage([&] { hw::ReadAuroraEmLog(p, Sensor("a")); });
+  const std::string msg = InvalidArgumentMessage([&] { formats::ReadAuroraEmLog(p, Sensor("a")); });
   ExpectContains(msg, ": line 5: column 27 of the Aurora header is \"\"; expected 'Xa'");
 }
 
 TEST(PlusLog, WaterTankTrackerBufferHasThreeToolsAt39Hz) {
   const fs::path file = kPlus / "WaterTankBottomTranslationTrackerBuffer-trimmed.igs.mha";
   const std::string msg =
-      InvalidArgumentMessage([&] { imaging::ReadEmLog(file, hw::EmImportOptions{}); });
+      InvalidArgumentMessage([&] { imaging::ReadEmLog(file, formats::EmImportOptions{}); });
   ExpectContains(msg, "3 tracked tools; choose one with --sensor");
   ExpectContains(msg, "StylusToTracker (801 OK)");
   for (const std::string tool : {"ProbeToTracker", "StylusToTrackerTransform"}) {
-    const hw::EmLog log = imaging::ReadEmLog(file, Sensor(tool));
-    EXPECT_EQ(log.format, hw::EmLogFormat::kPlus);
+    const formats::EmLog log = imaging::ReadEmLog(file, Sensor(tool));
+    EXPECT_EQ(log.format, formats::EmLogFormat::kPlus);
     EXPECT_EQ(log.sensors, (std::vector<std::string>{"ProbeToTracker", "ReferenceToTracker",
                                                      "StylusToTracker"}));
     EXPECT_EQ(log.samples.size(), 801u);
@@ -201,7 +201,7 @@ TEST(PlusLog, WaterTankTrackerBufferHasThreeToolsAt39Hz) {
     EXPECT_TRUE(StrictlyIncreasing(log));
   }
   // The first probe position is the translation column of frame 0's ProbeToTracker.
-  const hw::EmLog probe = imaging::ReadEmLog(file, Sensor("ProbeToTracker"));
+  const formats::EmLog probe = imaging::ReadEmLog(file, Sensor("ProbeToTracker"));
   EXPECT_NEAR((probe.samples[0].position_mm - Eigen::Vector3d(194.556, -32.4817, 5.69268)).norm(),
               0.0, 1e-9);
   EXPECT_NEAR(probe.samples[0].t_s, 7415.679586, 1e-9);
@@ -210,27 +210,27 @@ TEST(PlusLog, WaterTankTrackerBufferHasThreeToolsAt39Hz) {
 TEST(PlusLog, StatusSentinelsAreDropouts) {
   // NwirePhantomFreehand: the stylus is INVALID in all 97 frames, the probe OK.
   const fs::path nwire = kPlus / "NwirePhantomFreehand.igs.mha";
-  const hw::EmLog stylus = imaging::ReadEmLog(nwire, Sensor("StylusToTracker"));
+  const formats::EmLog stylus = imaging::ReadEmLog(nwire, Sensor("StylusToTracker"));
   EXPECT_EQ(stylus.samples.size(), 97u);
   EXPECT_EQ(stylus.valid_samples(), 0u);
   EXPECT_EQ(stylus.dropouts_by_reason.at("INVALID"), 97u);
   EXPECT_EQ(imaging::ReadEmLog(nwire, Sensor("ProbeToTracker")).valid_samples(), 97u);
   // The NRRD syntax of the same sequence gives the same log.
-  const hw::EmLog nrrd =
+  const formats::EmLog nrrd =
       imaging::ReadEmLog(kPlus / "NwirePhantomFreehand.igs.nrrd", Sensor("ProbeToTracker"));
   EXPECT_EQ(nrrd.valid_samples(), 97u);
   // TransformInterpolationTest: one INVALID probe frame (frame 7, written as identity); the
   // reference transform has no status field and counts as OK.
   const fs::path interp = kPlus / "TransformInterpolationTest.igs.mha";
-  const hw::EmLog probe = imaging::ReadEmLog(interp, Sensor("ProbeToTracker"));
+  const formats::EmLog probe = imaging::ReadEmLog(interp, Sensor("ProbeToTracker"));
   EXPECT_EQ(probe.samples.size(), 500u);
   EXPECT_EQ(probe.dropouts(), 1u);
   EXPECT_EQ(probe.dropouts_by_reason.at("INVALID"), 1u);
   EXPECT_FALSE(probe.samples[7].valid);
   EXPECT_EQ(imaging::ReadEmLog(interp, Sensor("ReferenceToTracker")).valid_samples(), 500u);
   // Prostate10_tracker: status "OK " with a trailing space; its only tool is chosen alone.
-  const hw::EmLog tool =
-      imaging::ReadEmLog(kPlus / "Prostate10_tracker.igs.mha", hw::EmImportOptions{});
+  const formats::EmLog tool =
+      imaging::ReadEmLog(kPlus / "Prostate10_tracker.igs.mha", formats::EmImportOptions{});
   EXPECT_EQ(tool.sensor, "ToolToTracker");
   EXPECT_EQ(tool.valid_samples(), 10u);
 }
@@ -244,32 +244,35 @@ TEST(PlusLog, UnknownToolIsListed) {
 }
 
 TEST(EmLogFormat, DetectedFromExtensionAndFirstLines) {
-  EXPECT_EQ(hw::DetectEmLogFormat(kAurora), hw::EmLogFormat::kAurora);
-  EXPECT_EQ(hw::DetectEmLogFormat(kPlus / "Prostate10_tracker.igs.mha"), hw::EmLogFormat::kPlus);
-  EXPECT_EQ(hw::DetectEmLogFormat(kPlus / "NwirePhantomFreehand.igs.nrrd"), hw::EmLogFormat::kPlus);
+  EXPECT_EQ(formats::DetectEmLogFormat(kAurora), formats::EmLogFormat::kAurora);
+  EXPECT_EQ(formats::DetectEmLogFormat(kPlus / "Prostate10_tracker.igs.mha"),
+            formats::EmLogFormat::kPlus);
+  EXPECT_EQ(formats::DetectEmLogFormat(kPlus / "NwirePhantomFreehand.igs.nrrd"),
+            formats::EmLogFormat::kPlus);
   const TempDir dir("em_format", true);
   WriteLines(dir.path() / "em.csv", {"t_s,x_mm,y_mm,z_mm,status", "0,1,2,3,OK"});
-  EXPECT_EQ(hw::DetectEmLogFormat(dir.path() / "em.csv"), hw::EmLogFormat::kSim);
+  EXPECT_EQ(formats::DetectEmLogFormat(dir.path() / "em.csv"), formats::EmLogFormat::kSim);
   WriteLines(dir.path() / "other.csv", {"time,x,y,z", "0,1,2,3"});
-  ExpectContains(InvalidArgumentMessage([&] { hw::DetectEmLogFormat(dir.path() / "other.csv"); }),
-                 "--em-format");
-  ExpectContains(InvalidArgumentMessage([] { hw::ParseEmLogFormat("csv"); }), "\"csv\"");
-  ExpectContains(InvalidArgumentMessage([] { hw::ParseLengthUnit("cm"); }), "mm, in");
+  ExpectContains(
+      InvalidArgumentMessage([&] { formats::DetectEmLogFormat(dir.path() / "other.csv"); }),
+      "--em-format");
+  ExpectContains(InvalidArgumentMessage([] { formats::ParseEmLogFormat("csv"); }), "\"csv\"");
+  ExpectContains(InvalidArgumentMessage([] { formats::ParseLengthUnit("cm"); }), "mm, in");
 }
 
 TEST(SimLog, ReadsSamplesAndMissingRows) {
   const TempDir dir("em_sim", true);
   const fs::path p = dir.path() / "em.csv";
-  std::vector<std::string> lines = {hw::SimEmLogHeader()};
+  std::vector<std::string> lines = {formats::SimEmLogHeader()};
   std::size_t missing = 0;
   for (int i = 0; i < 50; ++i) {
-    hw::EmSample s{100.0 + 0.025 * i, Eigen::Vector3d(i, -i, 0.5 * i), i % 7 != 3};
+    formats::EmSample s{100.0 + 0.025 * i, Eigen::Vector3d(i, -i, 0.5 * i), i % 7 != 3};
     missing += s.valid ? 0 : 1;
-    lines.push_back(hw::SimEmLogRow(s));
+    lines.push_back(formats::SimEmLogRow(s));
   }
   WriteLines(p, lines);
-  const hw::EmLog log = imaging::ReadEmLog(p, hw::EmImportOptions{});
-  EXPECT_EQ(log.format, hw::EmLogFormat::kSim);
+  const formats::EmLog log = imaging::ReadEmLog(p, formats::EmImportOptions{});
+  EXPECT_EQ(log.format, formats::EmLogFormat::kSim);
   EXPECT_EQ(log.samples.size(), 50u);
   EXPECT_EQ(log.dropouts_by_reason.at("MISSING"), missing);
   EXPECT_EQ(log.samples[4].position_mm, Eigen::Vector3d(4, -4, 2));
@@ -280,12 +283,12 @@ TEST(SimLog, UnitsComeFromTheHeaderAndMustAgreeWithTheDeclaration) {
   const TempDir dir("em_sim_units", true);
   const fs::path p = dir.path() / "em.csv";
   WriteLines(p, {"t_s,x_in,y_in,z_in,status", "0,1,0,0,OK", "0.1,2,0,0,OK"});
-  const hw::EmLog log = hw::ReadSimEmLog(p, hw::EmImportOptions{});
-  EXPECT_EQ(log.file_units, hw::LengthUnit::kInch);
+  const formats::EmLog log = formats::ReadSimEmLog(p, formats::EmImportOptions{});
+  EXPECT_EQ(log.file_units, formats::LengthUnit::kInch);
   EXPECT_NEAR(log.samples[1].position_mm.x(), 50.8, 1e-12);
-  hw::EmImportOptions mm;
-  mm.units = hw::LengthUnit::kMillimetre;
-  const std::string msg = InvalidArgumentMessage([&] { hw::ReadSimEmLog(p, mm); });
+  formats::EmImportOptions mm;
+  mm.units = formats::LengthUnit::kMillimetre;
+  const std::string msg = InvalidArgumentMessage([&] { formats::ReadSimEmLog(p, mm); });
   ExpectContains(msg, p.string());
   ExpectContains(msg, "positions are in in but mm were declared");
 }
@@ -293,18 +296,18 @@ TEST(SimLog, UnitsComeFromTheHeaderAndMustAgreeWithTheDeclaration) {
 TEST(SimLog, BadRowsNameTheLine) {
   const TempDir dir("em_sim_bad", true);
   const fs::path p = dir.path() / "em.csv";
-  const std::string header = hw::SimEmLogHeader();
+  const std::string header = formats::SimEmLogHeader();
   WriteLines(p, {header, "0,1,2,3,OK", "0.1,nan,2,3,OK"});
-  ExpectContains(InvalidArgumentMessage([&] { hw::ReadSimEmLog(p, {}); }),
+  ExpectContains(InvalidArgumentMessage([&] { formats::ReadSimEmLog(p, {}); }),
                  p.string() + ": line 3: column 'x_mm': NaN or infinity is not allowed");
   WriteLines(p, {header, "0,1,2,3,OK", "0.1,1,2,3,OK", "0.1,1,2,3,OK"});
-  ExpectContains(InvalidArgumentMessage([&] { hw::ReadSimEmLog(p, {}); }),
+  ExpectContains(InvalidArgumentMessage([&] { formats::ReadSimEmLog(p, {}); }),
                  p.string() + ": line 4: column 't_s': times must be strictly increasing");
   WriteLines(p, {header, "0,1,2,3,OK", "0.1,1,2,3,LOST"});
-  ExpectContains(InvalidArgumentMessage([&] { hw::ReadSimEmLog(p, {}); }),
+  ExpectContains(InvalidArgumentMessage([&] { formats::ReadSimEmLog(p, {}); }),
                  ": line 3: column 'status': \"LOST\" is not OK, MISSING");
   WriteLines(p, {"t_s,x,y,z,status", "0,1,2,3,OK"});
-  ExpectContains(InvalidArgumentMessage([&] { hw::ReadSimEmLog(p, {}); }),
+  ExpectContains(InvalidArgumentMessage([&] { formats::ReadSimEmLog(p, {}); }),
                  "missing position columns x_mm,y_mm,z_mm");
 }
 

@@ -1,4 +1,4 @@
-#include "hw/io/trial_io.h"
+#include "formats/trial_io.h"
 
 #include <gtest/gtest.h>
 
@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 namespace {
 
 namespace fs = std::filesystem;
@@ -554,4 +554,4 @@ TEST(TrialWriteError, RejectsInvalidTrials) {
 }
 
 }  // namespace
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 
 struct Bend {
   double angle_deg = 0.0;
@@ -37,4 +37,4 @@ struct CatheterConfig {
   static CatheterConfig SeedEvaluation();
 };
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

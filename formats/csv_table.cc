@@ -1,4 +1,4 @@
-#include "hw/io/csv_table.h"
+#include "formats/csv_table.h"
 
 #include <algorithm>
 #include <charconv>
@@ -8,7 +8,7 @@
 #include <optional>
 #include <unordered_set>
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 namespace {
 
 namespace fs = std::filesystem;
@@ -240,4 +240,4 @@ CsvTable ReadCsvTable(const fs::path& path, const CsvTableSpec& spec) {
   return csv;
 }
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

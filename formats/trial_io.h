@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "hw/catheter_config.h"
+#include "formats/catheter_config.h"
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 
 class TrialFormatError : public std::invalid_argument {
  public:
@@ -54,4 +54,4 @@ CatheterConfig ReadCatheterConfig(const std::filesystem::path& json_path);
 // or an invalid trial (mismatched column lengths, non-finite values, bad geometry).
 void WriteTrial(const std::filesystem::path& dir, const Trial& trial);
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

@@ -1,4 +1,4 @@
-#include "hw/io/durable_file.h"
+#include "formats/durable_file.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -10,7 +10,7 @@
 #include <string>
 #include <utility>
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 namespace fs = std::filesystem;
 
 namespace {
@@ -79,4 +79,4 @@ void ReplaceFileContents(const fs::path& path, std::string_view text) {
   if (std::rename(tmp.c_str(), path.c_str()) != 0) FailErrno(path, "cannot replace");
 }
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

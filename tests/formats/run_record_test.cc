@@ -1,6 +1,6 @@
-// The RUN directory (hw/io/run_record.h): what RunWriter writes, ReadRunRecord reads back
+// The RUN directory (formats/run_record.h): what RunWriter writes, ReadRunRecord reads back
 // exactly; bad files and bad rows are errors naming the file, the line and the column.
-#include "hw/io/run_record.h"
+#include "formats/run_record.h"
 
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "hw/io/em_log.h"
+#include "formats/em_log.h"
 #include "tests/test_util/expect_error.h"
 #include "tests/test_util/temp_dir.h"
 #include "tests/test_util/trial_files.h"
@@ -30,8 +30,8 @@ using testing::SetCsvField;
 using testing::TempDir;
 using testing::WriteLines;
 
-hw::TargetRecord Target(double t, bool found) {
-  hw::TargetRecord r;
+formats::TargetRecord Target(double t, bool found) {
+  formats::TargetRecord r;
   r.acquired_s = t;
   r.arrived_s = t + 0.011;
   r.published_s = t + 0.023;
@@ -45,11 +45,19 @@ hw::TargetRecord Target(double t, bool found) {
 
 // A small run: 20 volumes (one not found), servo, latency, EM and truth rows.
 void WriteSmallRun(const fs::path& dir) {
-  hw::RunInfo info;
+  formats::RunInfo info;
   info.heart_rate_hz = 1.25;
   info.notes = "unit test";
-  info.metadata_json = R"({"operator": "test", "volume_rate_hz": 20})";
-  hw::RunWriter w(dir, info);
+  info.extra_json = R"({"operator": "test", "volume_rate_hz": 20})";
+  info.meta.source = "unit test";
+  info.meta.time_base = formats::RunTimeBase::kPipeline;
+  info.meta.seed = 7;
+  info.meta.duration_s = 1.0;
+  info.meta.pipeline_to_unix_s = 1.7e9;
+  info.meta.em_to_image = Eigen::Isometry3d(Eigen::Translation3d(1, 2, 3) *
+                                            Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()));
+  info.meta.settings = {{"detector.sheath_diameter_mm", 2.5}, {"follower.offset_gain", 0.05}};
+  formats::RunWriter w(dir, info);
   for (int i = 0; i < 20; ++i) {
     const double t = 0.05 * i;
     w.AddTarget(Target(t, i != 5));
@@ -66,15 +74,28 @@ void WriteSmallRun(const fs::path& dir) {
 TEST(RunRecord, WhatTheWriterWritesReadsBack) {
   const TempDir dir("run_record");
   WriteSmallRun(dir.path());
-  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  const formats::RunRecord run = formats::ReadRunRecord(dir.path());
   ASSERT_TRUE(run.info.heart_rate_hz.has_value());
   EXPECT_EQ(*run.info.heart_rate_hz, 1.25);
   EXPECT_EQ(run.info.notes, "unit test");
-  EXPECT_EQ(run.info.metadata_json, R"({"operator":"test","volume_rate_hz":20})");
+  EXPECT_EQ(run.info.extra_json, R"({"operator":"test","volume_rate_hz":20})");
+  EXPECT_TRUE(run.info.warnings.empty());
+  const formats::RunMetadata& m = run.info.meta;
+  EXPECT_EQ(m.source, "unit test");
+  EXPECT_EQ(m.time_base, formats::RunTimeBase::kPipeline);
+  EXPECT_EQ(m.seed, std::optional<std::uint64_t>(7));
+  EXPECT_EQ(m.duration_s, std::optional<double>(1.0));
+  EXPECT_EQ(m.pipeline_to_unix_s, std::optional<double>(1.7e9));
+  ASSERT_TRUE(m.em_to_image.has_value());
+  EXPECT_LT((m.em_to_image->translation() - Eigen::Vector3d(1, 2, 3)).norm(), 1e-8);
+  EXPECT_NEAR(Eigen::AngleAxisd(m.em_to_image->rotation()).angle(), 0.5, 1e-8);
+  ASSERT_EQ(m.settings.size(), 2u);
+  EXPECT_EQ(m.settings[0].first, "detector.sheath_diameter_mm");
+  EXPECT_EQ(m.settings[0].second, 2.5);
   ASSERT_EQ(run.targets.size(), 20u);
   for (std::size_t i = 0; i < run.targets.size(); ++i) {
-    const hw::TargetRecord expected = Target(0.05 * static_cast<double>(i), i != 5);
-    const hw::TargetRecord& r = run.targets[i];
+    const formats::TargetRecord expected = Target(0.05 * static_cast<double>(i), i != 5);
+    const formats::TargetRecord& r = run.targets[i];
     EXPECT_EQ(r.acquired_s, expected.acquired_s);  // shortest round-trip text: exact
     EXPECT_EQ(r.published_s, expected.published_s);
     EXPECT_EQ(r.found, expected.found);
@@ -92,7 +113,7 @@ TEST(RunRecord, WhatTheWriterWritesReadsBack) {
   EXPECT_EQ(run.servo.back().faults, 1.0);
   ASSERT_EQ(run.latency.size(), 20u);
   EXPECT_EQ(run.truth.size(), 20u);
-  const hw::EmLog em = hw::ReadSimEmLog(run.EmPath(), {});
+  const formats::EmLog em = formats::ReadSimEmLog(run.EmPath(), {});
   EXPECT_EQ(em.samples.size(), 20u);
   EXPECT_EQ(em.dropouts(), 1u);
   EXPECT_FALSE(em.samples[7].valid);
@@ -101,11 +122,11 @@ TEST(RunRecord, WhatTheWriterWritesReadsBack) {
 TEST(RunRecord, OptionalFilesMayBeAbsent) {
   const TempDir dir("run_minimal");
   {
-    hw::RunWriter w(dir.path(), {});
+    formats::RunWriter w(dir.path(), {});
     w.AddTarget(Target(0.0, true));
     w.AddTarget(Target(0.05, true));
   }
-  const hw::RunRecord run = hw::ReadRunRecord(dir.path());
+  const formats::RunRecord run = formats::ReadRunRecord(dir.path());
   EXPECT_FALSE(run.info.heart_rate_hz.has_value());
   EXPECT_FALSE(run.has_servo || run.has_latency || run.has_em || run.has_truth);
   EXPECT_EQ(run.targets.size(), 2u);
@@ -126,9 +147,9 @@ TEST(RunRecord, TimingJsonReadsBackAndABadOneNamesTheKey) {
   const TempDir dir("run_record_timing");
   const fs::path run = dir.path() / "run";
   WriteSmallRun(run);
-  EXPECT_FALSE(hw::ReadRunRecord(run).has_timing);
+  EXPECT_FALSE(formats::ReadRunRecord(run).has_timing);
   WriteLines(run / "timing.json", {kTimingJson});
-  const hw::RunRecord r = hw::ReadRunRecord(run);
+  const formats::RunRecord r = formats::ReadRunRecord(run);
   ASSERT_TRUE(r.has_timing);
   EXPECT_EQ(r.timing.realtime_summary, "SCHED_FIFO 80, memory locked");
   EXPECT_TRUE(r.timing.fifo);
@@ -154,17 +175,17 @@ TEST(RunRecord, TimingJsonReadsBackAndABadOneNamesTheKey) {
   };
   for (const auto& [text, why] : bad) {
     WriteLines(run / "timing.json", {text});
-    ExpectContains(InvalidArgumentMessage([&] { hw::ReadRunRecord(run); }), why);
+    ExpectContains(InvalidArgumentMessage([&] { formats::ReadRunRecord(run); }), why);
   }
 }
 
 TEST(RunRecord, WriterRejectsBadRows) {
   const TempDir dir("run_writer");
-  hw::RunWriter w(dir.path(), {});
+  formats::RunWriter w(dir.path(), {});
   w.AddTarget(Target(1.0, true));
   ExpectContains(InvalidArgumentMessage([&] { w.AddTarget(Target(1.0, true)); }),
                  "targets.csv: time 1 s is not after the previous row's 1 s");
-  hw::TargetRecord nan = Target(2.0, true);
+  formats::TargetRecord nan = Target(2.0, true);
   nan.tip_mm.x() = std::numeric_limits<double>::quiet_NaN();
   ExpectContains(InvalidArgumentMessage([&] { w.AddTarget(nan); }),
                  "column 'tip_mm': the value is not finite");
@@ -176,13 +197,14 @@ TEST(RunRecord, WriterRejectsBadRows) {
                    w.AddLatency({1.0, 0.5});
                  }),
                  "applied_s is before arrived_s");
-  ExpectContains(InvalidArgumentMessage([&] { hw::RunWriter again(dir.path(), {}); }),
+  ExpectContains(InvalidArgumentMessage([&] { formats::RunWriter again(dir.path(), {}); }),
                  "run.json: already exists");
 }
 
 TEST(RunRecord, BadFilesNameTheFileLineAndColumn) {
   const TempDir dir("run_bad");
-  ExpectContains(InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); }), "no such folder");
+  ExpectContains(InvalidArgumentMessage([&] { formats::ReadRunRecord(dir.path()); }),
+                 "no such folder");
   WriteSmallRun(dir.path());
   const fs::path json = dir.path() / "run.json";
   const fs::path targets = dir.path() / "targets.csv";
@@ -192,7 +214,7 @@ TEST(RunRecord, BadFilesNameTheFileLineAndColumn) {
   }();
   auto expect_json_error = [&](const std::string& text, const std::string& part) {
     std::ofstream(json, std::ios::trunc) << text;
-    const std::string msg = InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); });
+    const std::string msg = InvalidArgumentMessage([&] { formats::ReadRunRecord(dir.path()); });
     ExpectContains(msg, json.string());
     ExpectContains(msg, part);
   };
@@ -203,26 +225,65 @@ TEST(RunRecord, BadFilesNameTheFileLineAndColumn) {
   expect_json_error(R"({"format": "echoservo-run", "version": 1, "heart_rate_hz": 20})",
                     "key 'heart_rate_hz': 20 is not a number in (0, 10] Hz");
   expect_json_error("{\"format\": ", "not valid JSON");
+  // The typed metadata: a wrong type or value names the key.
+  const std::string head = R"({"format": "echoservo-run", "version": 1, )";
+  expect_json_error(head + R"("time_base": 3})", "key 'time_base' must be a string");
+  expect_json_error(head + R"("time_base": "gps"})",
+                    "key 'time_base': 'gps' is not one of pipeline, unix, recording");
+  expect_json_error(head + R"("em_to_image": "1,0,0,0, 0,1,0,0"})",
+                    "key 'em_to_image': expected 12 or 16 numbers");
+  expect_json_error(head + R"("em_to_image": "2,0,0,0, 0,1,0,0, 0,0,1,0"})",
+                    "key 'em_to_image': not a rigid transform");
+  expect_json_error(head + R"("em_to_image": 5})", "key 'em_to_image' must be a string");
+  expect_json_error(head + R"("seed": -1})", "key 'seed': -1 is not a non-negative integer");
+  expect_json_error(head + R"("duration_s": "long"})", "key 'duration_s'");
+  expect_json_error(head + R"("settings": {"follower.offset_gain": "a"}})",
+                    "key 'settings': 'follower.offset_gain'");
   std::ofstream(json, std::ios::trunc) << good_json;
 
   SetCsvField(targets, 4, 3, "2");
-  std::string msg = InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); });
+  std::string msg = InvalidArgumentMessage([&] { formats::ReadRunRecord(dir.path()); });
   ExpectContains(msg, targets.string() + ": line 4: column 'found': 2 is not 0 or 1");
   SetCsvField(targets, 4, 3, "1");
   SetCsvField(targets, 6, 1, "0.1");  // arrived before acquired (0.2)
-  msg = InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); });
+  msg = InvalidArgumentMessage([&] { formats::ReadRunRecord(dir.path()); });
   ExpectContains(msg, ": line 6: column 'arrived_s': 0.1 s is before acquired_s = 0.2 s");
   SetCsvField(targets, 6, 1, "0.211");
   SetCsvField(targets, 7, 0, "0.2");
-  msg = InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); });
+  msg = InvalidArgumentMessage([&] { formats::ReadRunRecord(dir.path()); });
   ExpectContains(msg, ": line 7: column 'acquired_s': times must be strictly increasing");
   WriteLines(targets, {"acquired_s,arrived_s", "0,0"});
-  msg = InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); });
+  msg = InvalidArgumentMessage([&] { formats::ReadRunRecord(dir.path()); });
   ExpectContains(msg, "missing required columns");
   ExpectContains(msg, "(header: acquired_s,arrived_s,published_s,found,");
   fs::remove(targets);
-  ExpectContains(InvalidArgumentMessage([&] { hw::ReadRunRecord(dir.path()); }),
+  ExpectContains(InvalidArgumentMessage([&] { formats::ReadRunRecord(dir.path()); }),
                  "targets.csv: not found");
+}
+
+// A RUN written before the typed metadata (no source, no time_base) reads as before, with a
+// warning naming the file and the key; its other keys are kept.
+TEST(RunRecord, AnOlderRunWithoutTypedMetadataReadsWithAWarning) {
+  const TempDir dir("run_old");
+  WriteSmallRun(dir.path());
+  std::ofstream(dir.path() / "run.json", std::ios::trunc)
+      << R"({"format": "echoservo-run", "version": 1, "heart_rate_hz": 1.25, "operator": "x"})";
+  const formats::RunRecord run = formats::ReadRunRecord(dir.path());
+  EXPECT_EQ(run.info.meta.time_base, formats::RunTimeBase::kUnstated);
+  EXPECT_FALSE(run.info.meta.em_to_image.has_value());
+  EXPECT_EQ(run.info.extra_json, R"({"operator":"x"})");
+  ASSERT_EQ(run.info.warnings.size(), 2u);
+  ExpectContains(run.info.warnings[0], "run.json: no 'source'");
+  ExpectContains(run.info.warnings[1], "run.json: no 'time_base'");
+}
+
+// The writer refuses a typed key smuggled in as an untyped one.
+TEST(RunWriter, ATypedKeyInTheExtraKeysIsRefused) {
+  const TempDir dir("run_extra");
+  formats::RunInfo info;
+  info.extra_json = R"({"em_to_image": "1,0,0,0, 0,1,0,0, 0,0,1,0"})";
+  ExpectContains(InvalidArgumentMessage([&] { formats::RunWriter w(dir.path() / "r", info); }),
+                 "key 'em_to_image' is typed");
 }
 
 // kill -9 while writing: every row added before the kill is on disk and the RUN directory
@@ -237,7 +298,7 @@ TEST(RunWriter, AProcessKilledWhileWritingLosesNoRowAlreadyAdded) {
   ASSERT_GE(child, 0);
   if (child == 0) {  // the writer: adds its rows, says so, then waits to be killed
     ::close(ready[0]);
-    hw::RunWriter w(run, {});
+    formats::RunWriter w(run, {});
     for (int i = 0; i < kRows; ++i) {
       const double t = 0.04 * i;
       w.AddTarget({t, t + 0.05, t + 0.06, true, Eigen::Vector3d(1, 2, 3 + 0.01 * i),
@@ -257,7 +318,7 @@ TEST(RunWriter, AProcessKilledWhileWritingLosesNoRowAlreadyAdded) {
   int status = 0;
   ASSERT_EQ(::waitpid(child, &status, 0), child);
   ASSERT_TRUE(WIFSIGNALED(status));
-  const hw::RunRecord r = hw::ReadRunRecord(run);
+  const formats::RunRecord r = formats::ReadRunRecord(run);
   ASSERT_EQ(r.targets.size(), static_cast<std::size_t>(kRows));
   ASSERT_EQ(r.servo.size(), static_cast<std::size_t>(kRows));
   ASSERT_EQ(r.latency.size(), static_cast<std::size_t>(kRows));

@@ -1,11 +1,11 @@
-#include "hw/catheter_config.h"
+#include "formats/catheter_config.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 namespace {
 
 TEST(CatheterConfig, SeedGeometry) {
@@ -42,4 +42,4 @@ TEST(CatheterConfig, RejectsNonPhysicalNumbers) {
 }
 
 }  // namespace
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

@@ -1,5 +1,5 @@
 // Reader and writer of the trial format (docs/trial_format.md).
-#include "hw/io/trial_io.h"
+#include "formats/trial_io.h"
 
 #include <algorithm>
 #include <array>
@@ -19,9 +19,9 @@
 #include <utility>
 #include <vector>
 
-#include "hw/io/csv_table.h"
+#include "formats/csv_table.h"
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 namespace {
 
 namespace fs = std::filesystem;
@@ -399,4 +399,4 @@ CatheterConfig ReadCatheterConfig(const std::filesystem::path& json_path) {
   return ParseGeometry(json_path, j);
 }
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

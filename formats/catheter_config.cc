@@ -1,10 +1,10 @@
-#include "hw/catheter_config.h"
+#include "formats/catheter_config.h"
 
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 namespace {
 
 void Require(bool ok, const std::string& where, const std::string& field, const std::string& why) {
@@ -49,4 +49,4 @@ CatheterConfig CatheterConfig::SeedEvaluation() {
   return c;
 }
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

@@ -1,4 +1,4 @@
-#include "hw/io/em_log.h"
+#include "formats/em_log.h"
 
 #include <algorithm>
 #include <array>
@@ -9,9 +9,9 @@
 #include <stdexcept>
 #include <string_view>
 
-#include "hw/io/csv_table.h"
+#include "formats/csv_table.h"
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 namespace {
 
 namespace fs = std::filesystem;
@@ -457,4 +457,4 @@ std::string SimEmLogRow(const EmSample& sample) {
   return row;
 }
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

@@ -1,6 +1,6 @@
-// hw/io/durable_file.h: appends reach the file at once and in order, a replaced file is the
+// formats/durable_file.h: appends reach the file at once and in order, a replaced file is the
 // old or the new content and never a temporary, and errors name the file.
-#include "hw/io/durable_file.h"
+#include "formats/durable_file.h"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 
 #include "tests/test_util/temp_dir.h"
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 namespace {
 
 namespace fs = std::filesystem;
@@ -62,4 +62,4 @@ TEST(ReplaceFileContents, ReplacesWholeAndLeavesNoTemporary) {
 }
 
 }  // namespace
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats

@@ -3,7 +3,7 @@
 // `echoservo report`; RunWriter is what the pipeline and the demo call.
 //
 // Units and frames: times in s on the pipeline's clock (em.csv: the EM tracker's clock and
-// frame, hw/io/em_log.h), positions in mm in the image frame (servo.csv: along the catheter
+// frame, formats/em_log.h), positions in mm in the image frame (servo.csv: along the catheter
 // axis). Every time column strictly increases; arrived_s ≥ acquired_s, published_s ≥
 // arrived_s, applied_s ≥ arrived_s.
 // Errors: the reader validates everything and throws std::invalid_argument naming the file,
@@ -19,10 +19,11 @@
 #include <string>
 #include <vector>
 
-#include "hw/io/durable_file.h"
-#include "hw/io/em_log.h"
+#include "formats/durable_file.h"
+#include "formats/em_log.h"
+#include "formats/run_metadata.h"
 
-namespace echoservo::hw {
+namespace echoservo::formats {
 
 struct RunInfo {
   std::optional<double> heart_rate_hz;  // (0, 10] when given
@@ -30,9 +31,12 @@ struct RunInfo {
   // report measures the tip against the target less the standoff (where the tip should be).
   std::optional<double> standoff_mm;
   std::string notes;
-  // The other keys of run.json as a JSON object text ("{}" when none); the writer merges
-  // them in.
-  std::string metadata_json = "{}";
+  RunMetadata meta;  // typed: formats/run_metadata.h
+  // Keys of run.json no reader here knows (other tools'), kept as a JSON object text ("{}"
+  // when none) and written back; a key of the typed metadata here is an error.
+  std::string extra_json = "{}";
+  // Read only: what the reader noticed but accepted (a RUN without typed metadata).
+  std::vector<std::string> warnings;
 };
 
 struct TargetRecord {
@@ -137,4 +141,4 @@ class RunWriter {
   File targets_, servo_, latency_, em_, truth_;
 };
 
-}  // namespace echoservo::hw
+}  // namespace echoservo::formats
