@@ -4,8 +4,9 @@
 // the base command that makes the tip follow the reference, shapes it through the
 // safety limits (travel, velocity, acceleration), closes the PID position loop with
 // friction/inertia feed-forward, clamps the force and writes it. Two clocks drive it:
-// RunFixedStep (deterministic t = k·period, for simulation and tests) and RunRealtime
-// (a monotonic clock with absolute-deadline sleeps, for hardware). A base or tip reading
+// RunFixedStep (deterministic t = k·period, for simulation and tests) and the servo
+// runtime (live/servo_runtime.h: the real-time cycle clock or simulated time, for every
+// command, around live::ServoNode). A base or tip reading
 // that is not finite is a sensor fault: that cycle commands 0 N and leaves the controller's
 // state alone (counted; the supervisor above decides what happens next). Units: mm, s, N.
 #pragma once
@@ -70,24 +71,5 @@ class ServoLoop {
 // Runs `duration_s` on the deterministic clock starting at t = 0 (Start included).
 std::vector<CycleRecord> RunFixedStep(ServoLoop& loop, const Trajectory& reference,
                                       BacklashCompensator& compensator, double duration_s);
-
-struct RealtimeStats {
-  std::uint64_t cycles = 0;
-  std::uint64_t overruns = 0;  // cycles that finished after their deadline
-  double max_lateness_s = 0.0;
-  RealtimeStatus realtime;   // what the system granted (nothing asked without options)
-  CycleTimingReport timing;  // wake-up latency, cycle duration; its overruns == overruns
-};
-
-// Runs on std::chrono::steady_clock until `duration_s` or until `stop` becomes true
-// (checked every cycle). Records into `records` when non-null. With `realtime`, the calling
-// thread is raised first (control/realtime.h: SCHED_FIFO, CPU, locked memory; the CPU
-// latency request lasts for the run) and keeps those settings afterwards; refusals are in
-// the stats, never an error. A cycle that ends after its deadline makes the next start at
-// once (the schedule shifts by its lateness rather than bursting to catch up).
-RealtimeStats RunRealtime(ServoLoop& loop, const Trajectory& reference,
-                          BacklashCompensator& compensator, double duration_s,
-                          const std::atomic<bool>& stop, std::vector<CycleRecord>* records,
-                          const RealtimeOptions* realtime = nullptr);
 
 }  // namespace echoservo::control

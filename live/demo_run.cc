@@ -21,20 +21,22 @@
 #include "formats/run_record.h"
 #include "hw/fault_injection.h"
 #include "hw/sim_em_tracker.h"
-#include "imaging/io/async_sequence_writer.h"
 #include "link/dds_link.h"
 #include "link/security.h"
-#include "live/delayed_scanner.h"
 #include "live/lock_free.h"
 #include "live/pipeline_clock.h"
 #include "live/pipeline_parameters.h"
 #include "live/run_row_queue.h"
 #include "live/servo_cycle_clock.h"
 #include "live/servo_node.h"
+#include "live/servo_runtime.h"
 #include "live/sim_catheter.h"
 #include "live/sim_scene.h"
 #include "live/tracker_node.h"
+#include "live/tracker_runtime.h"
+#include "live/tracker_source.h"
 #include "report/accuracy_report.h"
+#include "report/scored_window.h"
 
 namespace echoservo::live {
 namespace {
@@ -63,7 +65,7 @@ class Arrivals {
   std::size_t next_ = 0;
 };
 
-std::string Fmt(const char* f, auto... args) {
+std::string DemoFmt(const char* f, auto... args) {
   char buf[512];
   std::snprintf(buf, sizeof buf, f, args...);
   return buf;
@@ -95,7 +97,7 @@ void DemoOptions::Validate() const {
   if (!(target_p2p_mm > 0 && target_p2p_mm <= 20)) bad("--target-p2p", "must be in (0, 20] mm");
   if (!(standoff_mm >= 0 && standoff_mm <= 30)) bad("--standoff", "must be in [0, 30] mm");
   if (!(harmonics >= 1 && harmonics <= 12)) bad("--harmonics", "must be in [1, 12]");
-  if (!(metrics_start_s >= 0 && metrics_start_s < duration_s))
+  if (!std::isnan(metrics_start_s) && !(metrics_start_s >= 0 && metrics_start_s < duration_s))
     bad("--metrics-start", "must be in [0, duration)");
   if (save_volumes && out_dir.empty()) bad("--save-volumes", "needs --out RUN");
   if (record_queue_volumes < 1) bad("--save-volumes", "needs a recorder queue of ≥ 1 volume");
@@ -136,34 +138,215 @@ PipelineSettings DemoSettings(const DemoOptions& o) {
   return s;
 }
 
+namespace {
+
+// The tracker's side of the demo, on the tracker runtime's thread: the volume's arrival for the
+// latency, the close-approach counters against the scene's truth, and the caller's sink.
+struct DemoTrackerSink {
+  const DemoOptions& o;
+  SimScene& scene;
+  Arrivals& arrivals;
+  std::function<void(const std::string&)> log;
+  std::atomic<std::uint64_t> tracked{0}, target_found{0}, contact_true{0}, contact_reported{0},
+      contact_true_reported{0}, contact_reported_apart{0};
+
+  void operator()(const TrackedVolume& r, const SourceVolume& v, double unix_offset_s) {
+    if (r.published) arrivals.Add(r.sequence, v.arrived_s);
+    if (o.on_tracked) o.on_tracked(r, v.volume, v.stamp_s + unix_offset_s);
+    if (!r.error.empty()) return;
+    ++tracked;
+    const tracking::CatheterDetection& det = r.detection;
+    if (det.found && det.target_found) ++target_found;
+    const double past_mm = scene.TipPastSurfaceMm(v.stamp_s);
+    const bool touching = past_mm >= 0.0;
+    const bool reported = det.found && det.target_found && det.contact;
+    contact_true += touching;
+    contact_reported += reported;
+    contact_true_reported += touching && reported;
+    contact_reported_apart += reported && past_mm < -0.5;
+  }
+};
+
+// The servo's side of the demo, once per cycle on the servo thread: latency, the scene's tip,
+// the EM samples, the RUN rows and the scored sums. Allocation-free once warm.
+class DemoServoBook {
+ public:
+  DemoServoBook(const DemoOptions& o, SimScene& scene, hw::SimulatedCatheter& plant,
+                ServoNode& servo, Arrivals& arrivals, RunRowQueue& rows, double heart_rate_hz)
+      : o_(o),
+        scene_(scene),
+        plant_(plant),
+        servo_(servo),
+        arrivals_(arrivals),
+        rows_(rows),
+        em_(scene.em_options(), 0.0),
+        em_to_image_(scene.em_to_image()),
+        heart_rate_hz_(heart_rate_hz) {
+    latency_ms_.reserve(static_cast<std::size_t>(o.duration_s * o.rate_hz) + 16);
+    // A window the user gave (--metrics-start) holds from the start; else it opens once
+    // servo.csv's first "following" row is written (report/scored_window.h).
+    if (std::isfinite(o.metrics_start_s))
+      window_ = report::GivenWindow(o.metrics_start_s, "demo --metrics-start");
+  }
+
+  void Cycle(std::uint64_t k, double t, const ServoCycle& c, const PipelineClock& clock,
+             std::uint64_t acquired, std::uint64_t measured) {
+    if (c.applied_sequence) pending_ = std::make_pair(*c.applied_sequence, clock.Now());
+    if (pending_) NoteLatency();
+    const double tip_true = plant_.truth().tip_mm;
+    scene_.SetPlantTip(t, tip_true);
+    const Eigen::Vector3d tip_img = scene_.TipImage(tip_true);
+    const control::FollowerMode mode = servo_.follower().mode();
+    if (k % 10 == 0) {  // a servo.csv row; the first "following" one opens the window
+      rows_.AddServo(t, mode, c.record.reference_mm, c.record.base_mm, c.record.tip_mm,
+                     static_cast<double>(servo_.stats().fault_events), scene_.TargetImage(t),
+                     tip_img);
+      if (!window_ && mode == control::FollowerMode::kFollowing)
+        window_ = report::WindowAfterFollowing(t, heart_rate_hz_);
+    }
+    if (window_ && t >= window_->from_s) true_.Add((tip_img - scene_.DesiredTip(t)).squaredNorm());
+    while (em_.next_sample_s() <= t) {
+      const formats::EmSample r = em_.Sample(tip_img);
+      if (!o_.external_em) rows_.AddEm(r);
+      const double t_pipeline = r.t_s - scene_.em_options().clock_offset_s;
+      if (r.valid && window_ && t_pipeline >= window_->from_s)
+        em_sq_.Add((em_to_image_ * r.position_mm - scene_.DesiredTip(t_pipeline)).squaredNorm());
+    }
+    if (k % 1000 == 0 && k > 0 && o_.log)  // once a second: a line of progress
+      o_.log(DemoFmt("t %.0f s: mode %s, volumes %llu, detected %llu", t,
+                     control::ToString(mode).c_str(), static_cast<unsigned long long>(acquired),
+                     static_cast<unsigned long long>(measured)));
+  }
+
+  void Fill(DemoResult& r) const {
+    r.tip_to_target_rms_mm = em_sq_.Rms();
+    r.true_tip_to_target_rms_mm = true_.Rms();
+    r.scored_from_s = window_ ? window_->from_s : std::numeric_limits<double>::quiet_NaN();
+    r.scored_window = window_ ? window_->reason : "nothing scored: the servo never followed";
+    r.em_samples = em_.samples();
+    r.em_dropouts = em_.dropouts();
+    r.latency.count = latency_ms_.size();
+    if (!latency_ms_.empty()) {
+      r.latency.p50_ms = report::Percentile(latency_ms_, 0.5);
+      r.latency.p99_ms = report::Percentile(latency_ms_, 0.99);
+      r.latency.max_ms = report::Percentile(latency_ms_, 1.0);
+    }
+  }
+  std::uint64_t latency_out_of_order() const { return latency_out_of_order_; }
+
+ private:
+  struct SumSq {
+    double sum = 0.0;
+    std::uint64_t n = 0;
+    void Add(double sq) { sum += sq, ++n; }
+    double Rms() const { return n ? std::sqrt(sum / static_cast<double>(n)) : 0.0; }
+  };
+
+  // The newest applied estimate whose arrival the tracker has not noted yet (the servo can
+  // apply an estimate before the tracker thread is back from Publish): its latency is taken
+  // once the arrival is known, with the time it was applied. latency.csv's rows go in arrival
+  // order; an estimate applied after a newer one's (seen once under the sanitizers' load) is
+  // counted, not written out of order.
+  void NoteLatency() {
+    const std::optional<double> arrived = arrivals_.Find(pending_->first);
+    if (!arrived) return;
+    const double applied = pending_->second;
+    if (*arrived > last_latency_arrived_s_) {
+      latency_ms_.push_back(1e3 * (applied - *arrived));
+      rows_.AddLatency({*arrived, applied});
+      last_latency_arrived_s_ = *arrived;
+    } else {
+      ++latency_out_of_order_;
+    }
+    pending_.reset();
+  }
+
+  const DemoOptions& o_;
+  SimScene& scene_;
+  hw::SimulatedCatheter& plant_;
+  ServoNode& servo_;
+  Arrivals& arrivals_;
+  RunRowQueue& rows_;
+  hw::SimEmTracker em_;
+  Eigen::Isometry3d em_to_image_;
+  double heart_rate_hz_;
+  std::optional<report::ScoredWindow> window_;
+  SumSq em_sq_, true_;
+  std::vector<double> latency_ms_;
+  std::optional<std::pair<std::uint64_t, double>> pending_;  // sequence, applied_s
+  double last_latency_arrived_s_ = -std::numeric_limits<double>::infinity();
+  std::uint64_t latency_out_of_order_ = 0;
+};
+
+// The RUN directory's run.json (formats/run_record.h): the typed metadata of this run.
+formats::RunInfo DemoRunInfo(const DemoOptions& o, const PipelineSettings& settings,
+                             const SimScene& scene, const PipelineClock& clock) {
+  formats::RunInfo info;
+  info.heart_rate_hz = o.heart_rate_bpm / 60.0;
+  info.standoff_mm = settings.follower.standoff_mm;
+  info.meta.source = "echoservo demo";
+  info.meta.seed = o.seed;
+  info.meta.duration_s = o.duration_s;
+  info.meta.em_to_image = scene.em_to_image();
+  info.meta.time_base = formats::RunTimeBase::kPipeline;
+  info.meta.pipeline_to_unix_s = clock.link_offset_s();
+  info.meta.settings = AllValues(settings);  // every parameter (live/pipeline_parameters.h)
+  return info;
+}
+
+void FillDemoCounts(const ServoNode& servo, const TrackerRunResult& tr, const DemoTrackerSink& sink,
+                    DemoResult& result) {
+  const ServoNodeStats& ss = servo.stats();
+  result.servo_cycles = ss.cycles;
+  result.servo_overruns = result.timing.overruns;
+  result.deadline_holds = ss.deadline_holds;
+  result.deadline_retracts = ss.deadline_retracts;
+  result.limit_faults = ss.limit_interventions;
+  result.limit_violations = ss.limit_violations;
+  result.resumes = ss.resumes;
+  const control::FollowerCounters& fc = servo.follower().counters();
+  result.stale_events = fc.stale_events;
+  result.estimates_accepted = ss.estimates_accepted;
+  result.rejected_link = servo.target_link_stats().validation.total_rejected();
+  result.estimates_rejected = ss.estimates_rejected + result.rejected_link;
+  result.rejected_non_finite = fc.rejected_non_finite;
+  result.rejected_range = fc.rejected_range;
+  result.rejected_time = fc.rejected_time;
+  result.rejected_confidence = fc.rejected_confidence;
+  result.tracked_volumes = sink.tracked;
+  result.target_found = sink.target_found;
+  result.contact_true = sink.contact_true;
+  result.contact_reported = sink.contact_reported;
+  result.contact_true_reported = sink.contact_true_reported;
+  result.contact_reported_apart = sink.contact_reported_apart;
+  result.volumes = tr.source.acquired;
+  result.detected = tr.stats.measured;
+  result.missed_acquisitions = tr.source.missed;
+  result.dropped_frames = tr.source.dropped + tr.stats.not_found + tr.source.missed;
+  result.tracker_errors = tr.stats.errors;
+  result.volumes_recorded = tr.recorder.written;
+  result.volumes_record_dropped = tr.recorder.dropped;
+  result.record_error = tr.recorder.error;
+}
+
+}  // namespace
+
 DemoResult RunDemo(const DemoOptions& o) {
   o.Validate();
   auto log = [&](const std::string& s) {
     if (o.log) o.log(s);
   };
-  // The tracker's, follower's and servo's settings: the options' own, then --set.
-  const PipelineSettings settings = DemoSettings(o);
-  const double standoff_mm = settings.follower.standoff_mm;
-
-  SimScene scene({o.rate_hz, o.heart_rate_bpm, o.target_p2p_mm, standoff_mm, o.seed});
-  const Eigen::Isometry3d em_to_image = scene.em_to_image();
-
-  // The RUN directory (formats/run_record.h): run.json now, the streams as they come. If the
-  // demo fails, what it created there is removed so a retry with the same --out works.
+  const PipelineSettings settings = DemoSettings(o);  // the options' own, then --set
+  SimScene scene(
+      {o.rate_hz, o.heart_rate_bpm, o.target_p2p_mm, settings.follower.standoff_mm, o.seed});
+  const PipelineClock clock(0.3);
+  // The RUN directory: run.json now, the streams as they come. If the demo fails, what it
+  // created there is removed so a retry with the same --out works.
   formats::RunDirGuard run_guard(o.out_dir);
   std::unique_ptr<formats::RunWriter> writer;
-  if (!o.out_dir.empty()) {
-    formats::RunInfo info;
-    info.heart_rate_hz = o.heart_rate_bpm / 60.0;
-    info.standoff_mm = standoff_mm;
-    info.meta.source = "echoservo demo";
-    info.meta.seed = o.seed;
-    info.meta.duration_s = o.duration_s;
-    info.meta.em_to_image = em_to_image;
-    info.meta.time_base = formats::RunTimeBase::kPipeline;
-    info.meta.settings = AllValues(settings);  // every parameter (live/pipeline_parameters.h)
-    writer = std::make_unique<formats::RunWriter>(o.out_dir, info);
-  }
+  if (!o.out_dir.empty())
+    writer =
+        std::make_unique<formats::RunWriter>(o.out_dir, DemoRunInfo(o, settings, scene, clock));
   // The live EM stream's rows go to the writer: stopped before it is destroyed.
   struct ExternalEm {
     std::function<void()> stop;
@@ -173,8 +356,7 @@ DemoResult RunDemo(const DemoOptions& o) {
   } external_em;
   if (o.external_em) external_em.stop = o.external_em(writer.get());
 
-  // The DDS link (link/dds_link.h): the tracker's and the servo's participants, loopback
-  // only. Samples carry the shared (system) clock: pipeline time + link_offset_s.
+  // The DDS link, loopback only; samples carry the system clock: pipeline + link_offset_s.
   link::ParticipantOptions po;
   po.domain_id = o.dds_domain;
   po.loopback_only = true;
@@ -186,28 +368,15 @@ DemoResult RunDemo(const DemoOptions& o) {
   link::Participant servo_participant(po);
   link::TargetPublisher target_pub(tracker_participant);
 
-  const PipelineClock clock(0.3);
-  TrackerNodeOptions to = settings.tracker;
-  to.link_offset_s = clock.link_offset_s();
-  // The volumes as the tracker receives them, written on the recorder's own thread: the
-  // tracker hands each over after publishing and never waits for the disk (a full queue
-  // drops the volume, counted).
-  std::unique_ptr<imaging::AsyncSequenceWriter> recorder;
-  if (o.save_volumes)
-    recorder = std::make_unique<imaging::AsyncSequenceWriter>(o.out_dir / "volumes.igs.mhd",
-                                                              o.record_queue_volumes);
-  TrackerNode tracker(to, &target_pub, writer.get());
+  // The servo: the simulated catheter, read through a slow driver on purpose (slow_reads).
   SimCatheter catheter = MakeSimCatheter(o.sheath_id_mm, o.guidewire_od_mm, o.seed);
   catheter.servo = settings.servo;
   hw::SimulatedCatheter& plant = *catheter.plant;
   ServoNodeOptions so;
   so.follower = settings.follower;
-  // The operator's enable once tracking delivers, and again after a retraction (the demo
-  // resumes by itself; a clinical system waits for the operator's ENABLE command).
-  so.auto_enable = true;
+  so.auto_enable = true;  // the demo resumes by itself; a clinic waits for ENABLE
   so.link_offset_s = clock.link_offset_s();
   so.watchdog = o.watchdog;
-  // A slow driver on purpose (slow_reads): the servo reads the plant through it.
   std::optional<hw::FaultInjectingHardware> slow_hw;
   if (!o.slow_reads.empty()) slow_hw.emplace(plant, o.slow_reads);
   hw::HardwareInterface& servo_hw = slow_hw ? static_cast<hw::HardwareInterface&>(*slow_hw) : plant;
@@ -215,129 +384,58 @@ DemoResult RunDemo(const DemoOptions& o) {
                   &servo_participant);
   target_pub.WaitForSubscribers(1, 5.0);
 
-  DemoResult result;
-  std::atomic<bool> stop{false};
+  // The tracker runtime on its own thread: the simulated scanner → node → link, RUN, recorder.
   Arrivals arrivals;
-  DelayedScanner scanner(scene, clock,
-                         {o.rate_hz, o.delay_min_s, o.delay_max_s, o.duration_s, o.seed});
-
-  // Tracker: the newest delivered volume → detector → EKF → link.
-  std::atomic<std::uint64_t> tracked_volumes{0}, target_found{0}, contact_true{0},
-      contact_reported{0}, contact_true_reported{0}, contact_reported_apart{0};
-  std::thread tracker_thread([&] {
-    while (true) {
-      std::optional<Delivery> d = scanner.Next(0.05);
-      if (!d) {
-        if (stop || scanner.finished()) break;
-        continue;
-      }
-      const double arrived = clock.Now();
-      const TrackedVolume r =
-          tracker.Process(d->volume, d->acquired_s, arrived, [&] { return clock.Now(); });
-      if (r.published) arrivals.Add(r.sequence, arrived);
-      if (o.on_tracked) o.on_tracked(r, d->volume, d->acquired_s + clock.link_offset_s());
-      if (r.error.empty()) {
-        ++tracked_volumes;
-        const tracking::CatheterDetection& det = r.detection;
-        if (det.found && det.target_found) ++target_found;
-        const double past_mm = scene.TipPastSurfaceMm(d->acquired_s);
-        const bool touching = past_mm >= 0.0;
-        const bool reported = det.found && det.target_found && det.contact;
-        contact_true += touching;
-        contact_reported += reported;
-        contact_true_reported += touching && reported;
-        contact_reported_apart += reported && past_mm < -0.5;
-      }
-      if (recorder) recorder->Submit(std::move(d->volume));
-      if (!r.error.empty()) log("tracker: " + r.error);
-    }
-  });
-
-  // The servo thread's RUN rows go to the disk from a thread of their own (created here,
-  // before the servo thread is raised to real time).
-  RunRowQueue rows(writer.get());
-
-  // However this function is left (an exception in the servo loop included), the tracker
-  // thread is stopped and joined first: a joinable std::thread must not be destroyed.
+  DemoTrackerSink sink{o, scene, arrivals, log};
+  TrackerRuntimeOptions tro;
+  tro.node = settings.tracker;
+  tro.node.link_offset_s = clock.link_offset_s();
+  tro.publisher = &target_pub;
+  tro.writer = writer.get();
+  if (o.save_volumes) tro.record_to = o.out_dir / "volumes.igs.mhd";
+  tro.record_queue_volumes = o.record_queue_volumes;
+  tro.log = [&log](const std::string& s) { log("tracker: " + s); };
+  const double unix_offset_s = clock.link_offset_s();
+  tro.on_tracked = [&sink, unix_offset_s](const TrackedVolume& r, const SourceVolume& v, double) {
+    sink(r, v, unix_offset_s);
+  };
+  TrackerRuntime tracker(tro);
+  SimScannerSource scanner(scene, clock,
+                           {o.rate_hz, o.delay_min_s, o.delay_max_s, o.duration_s, o.seed});
+  TrackerRunResult tracked;
+  std::thread tracker_thread([&] { tracked = tracker.Run(scanner); });
+  // However this function is left, the tracker thread is stopped and joined first.
   struct TrackerJoin {
-    std::atomic<bool>& stop;
-    DelayedScanner& scanner;
+    SimScannerSource& scanner;
     std::thread& thread;
     ~TrackerJoin() {
-      stop = true;
       scanner.Stop();
       if (thread.joinable()) thread.join();
     }
-  } tracker_join{stop, scanner, tracker_thread};
+  } tracker_join{scanner, tracker_thread};
 
-  // Servo: 1 kHz on absolute deadlines, in this thread.
-  std::vector<double> latency_ms;
-  double em_sq = 0.0, true_sq = 0.0;
-  std::uint64_t em_n = 0, true_n = 0;
-  hw::SimEmTracker em(scene.em_options(), 0.0);
-  const double period = catheter.servo.period_s;
-  // The newest applied estimate whose arrival the tracker has not noted yet (the servo can
-  // apply an estimate before the tracker thread is back from Publish): its latency is
-  // taken once the arrival is known, with the time it was applied.
-  std::optional<std::pair<std::uint64_t, double>> pending;  // sequence, applied_s
-  double last_latency_arrived_s = -std::numeric_limits<double>::infinity();
-  std::uint64_t latency_out_of_order = 0;
-  // This thread becomes the servo thread; the scanner, tracker, recorder and DDS threads
-  // exist already and keep their normal priority.
-  ServoCycleClock cycle_clock(clock, period, &servo, o.realtime);
-  for (const std::string& r : cycle_clock.realtime().refusals) log("real time: " + r);
-  log("real time: " + cycle_clock.realtime().Summary());
-  servo.Start(0.0);
-  for (std::uint64_t k = 0;; ++k) {
-    const double t = static_cast<double>(k) * period;
-    if (t > o.duration_s) break;
-    cycle_clock.Wait(k);
-    const ServoCycle c = servo.Cycle(t, k);
-    if (c.applied_sequence) pending = std::make_pair(*c.applied_sequence, clock.Now());
-    if (pending) {
-      if (const std::optional<double> arrived = arrivals.Find(pending->first)) {
-        const double applied = pending->second;
-        // latency.csv's rows go in arrival order; an estimate applied after a newer one's
-        // (seen once under the sanitizers' load) is counted, not written out of order.
-        if (*arrived > last_latency_arrived_s) {
-          latency_ms.push_back(1e3 * (applied - *arrived));
-          rows.AddLatency({*arrived, applied});
-          last_latency_arrived_s = *arrived;
-        } else {
-          ++latency_out_of_order;
-        }
-        pending.reset();
-      }
-    }
-    const double tip_true = plant.truth().tip_mm;
-    scene.SetPlantTip(t, tip_true);
-    const Eigen::Vector3d tip_img = scene.TipImage(tip_true);
-    if (t >= o.metrics_start_s) {
-      true_sq += (tip_img - scene.DesiredTip(t)).squaredNorm();
-      ++true_n;
-    }
-    while (em.next_sample_s() <= t) {
-      const double t_sample = em.next_sample_s();
-      const formats::EmSample r = em.Sample(tip_img);
-      if (!o.external_em) rows.AddEm(r);
-      if (r.valid && t_sample >= o.metrics_start_s) {
-        const double t_pipeline = r.t_s - scene.em_options().clock_offset_s;
-        em_sq += (em_to_image * r.position_mm - scene.DesiredTip(t_pipeline)).squaredNorm();
-        ++em_n;
-      }
-    }
-    if (k % 10 == 0)
-      rows.AddServo(t, servo.follower().mode(), c.record.reference_mm, c.record.base_mm,
-                    c.record.tip_mm, static_cast<double>(servo.stats().fault_events),
-                    scene.TargetImage(t), tip_img);
-    if (k % 1000 == 0 && k > 0)  // once a second: a line of progress (the one allocation)
-      log(Fmt("t %.0f s: mode %s, volumes %llu, detected %llu", t,
-              control::ToString(servo.follower().mode()).c_str(),
-              static_cast<unsigned long long>(scanner.acquired()),
-              static_cast<unsigned long long>(tracker.stats().measured)));
-    cycle_clock.Done();
-  }
-  stop = true;
+  // The servo's RUN rows go to the disk from a thread of their own (created before the servo
+  // thread is raised to real time), then the servo runtime on this thread.
+  RunRowQueue rows(writer.get());
+  DemoServoBook book(o, scene, plant, servo, arrivals, rows, o.heart_rate_bpm / 60.0);
+  ServoRuntimeOptions sro;
+  sro.clock = ServoClock::kRealtime;
+  sro.pipeline_clock = &clock;
+  sro.realtime = o.realtime;
+  sro.duration_s = o.duration_s;
+  DemoResult result;
+  const ServoRunResult sr = ServoRuntime(servo, sro)
+                                .Run(
+                                    nullptr,
+                                    [&](std::uint64_t k, double t, const ServoCycle& c) {
+                                      book.Cycle(k, t, c, clock, scanner.counts().acquired,
+                                                 tracker.node().stats().measured);
+                                    },
+                                    [&log](const control::RealtimeStatus& rt) {
+                                      for (const std::string& r : rt.refusals)
+                                        log("real time: " + r);
+                                      log("real time: " + rt.Summary());
+                                    });
   scanner.Stop();
   tracker_thread.join();
   servo.WaitStatesPublished(1.0);  // the publisher thread's last state, counted
@@ -345,73 +443,22 @@ DemoResult RunDemo(const DemoOptions& o) {
   if (!rows.error().empty())
     throw std::runtime_error("demo: writing the RUN rows: " + rows.error());
   if (rows.lost() > 0)
-    log(Fmt("RUN rows: %llu row(s) lost (the row writer fell behind the servo)",
-            static_cast<unsigned long long>(rows.lost())));
+    log(DemoFmt("RUN rows: %llu row(s) lost (the row writer fell behind the servo)",
+                static_cast<unsigned long long>(rows.lost())));
+  if (book.latency_out_of_order() > 0)
+    log(DemoFmt("latency: %llu estimate(s) applied after a newer one, not scored",
+                static_cast<unsigned long long>(book.latency_out_of_order())));
 
-  const ServoNodeStats& ss = servo.stats();
-  const TrackerStats& ts = tracker.stats();
-  result.servo_cycles = ss.cycles;
-  result.realtime = cycle_clock.realtime();
-  result.timing = cycle_clock.Report();
-  result.servo_overruns = result.timing.overruns;
-  result.deadline_holds = ss.deadline_holds;
-  result.deadline_retracts = ss.deadline_retracts;
+  result.realtime = sr.realtime;
+  result.timing = sr.timing;
+  FillDemoCounts(servo, tracked, sink, result);
+  book.Fill(result);
+  result.ekf_harmonics = tracker.node().ekf().harmonics();
+  result.ekf_rate_hz = tracker.node().ekf().rate_hz();
   result.timing_json = ServoTimingJson(result.realtime, result.timing, so.watchdog,
-                                       ss.deadline_holds, ss.deadline_retracts);
+                                       result.deadline_holds, result.deadline_retracts);
   if (!o.out_dir.empty())
     formats::ReplaceFileContents(o.out_dir / "timing.json", result.timing_json + "\n");
-  result.limit_faults = ss.limit_interventions;
-  result.limit_violations = ss.limit_violations;
-  result.resumes = ss.resumes;
-  result.stale_events = servo.follower().counters().stale_events;
-  result.tracked_volumes = tracked_volumes;
-  result.target_found = target_found;
-  result.contact_true = contact_true;
-  result.contact_reported = contact_reported;
-  result.contact_true_reported = contact_true_reported;
-  result.contact_reported_apart = contact_reported_apart;
-  result.em_samples = em.samples();
-  result.em_dropouts = em.dropouts();
-  result.estimates_accepted = ss.estimates_accepted;
-  result.rejected_link = servo.target_link_stats().validation.total_rejected();
-  result.estimates_rejected = ss.estimates_rejected + result.rejected_link;
-  const control::FollowerCounters& fc = servo.follower().counters();
-  result.rejected_non_finite = fc.rejected_non_finite;
-  result.rejected_range = fc.rejected_range;
-  result.rejected_time = fc.rejected_time;
-  result.rejected_confidence = fc.rejected_confidence;
-  result.ekf_harmonics = tracker.ekf().harmonics();
-  result.ekf_rate_hz = tracker.ekf().rate_hz();
-  result.volumes = scanner.acquired();
-  result.detected = ts.measured;
-  result.missed_acquisitions = scanner.missed();
-  result.dropped_frames = scanner.dropped() + ts.not_found + scanner.missed();
-  result.tracker_errors = ts.errors;
-  result.tip_to_target_rms_mm = em_n ? std::sqrt(em_sq / static_cast<double>(em_n)) : 0.0;
-  result.true_tip_to_target_rms_mm =
-      true_n ? std::sqrt(true_sq / static_cast<double>(true_n)) : 0.0;
-  result.latency.count = latency_ms.size();
-  if (latency_out_of_order > 0)
-    log(Fmt("latency: %llu estimate(s) applied after a newer one, not scored",
-            static_cast<unsigned long long>(latency_out_of_order)));
-  if (!latency_ms.empty()) {
-    result.latency.p50_ms = report::Percentile(latency_ms, 0.5);
-    result.latency.p99_ms = report::Percentile(latency_ms, 0.99);
-    result.latency.max_ms = report::Percentile(latency_ms, 1.0);
-  }
-  if (recorder) {  // what is queued is written, then synced
-    recorder->Close();
-    const imaging::AsyncRecorderStats rs = recorder->stats();
-    result.volumes_recorded = rs.written;
-    result.volumes_record_dropped = rs.dropped;
-    result.record_error = rs.error;
-    formats::ReplaceFileContents(o.out_dir / "volumes.json", recorder->SummaryJson());
-    if (!rs.error.empty()) log("volume recording stopped: " + rs.error);
-    if (rs.dropped > 0)
-      log(Fmt("volume recording: %llu of %llu volumes dropped (recorder queue of %zu full)",
-              static_cast<unsigned long long>(rs.dropped),
-              static_cast<unsigned long long>(rs.submitted), recorder->queue_capacity()));
-  }
   if (external_em.stop) external_em.stop();  // its last rows in before the flush
   if (writer) writer->Flush();
   run_guard.Keep();

@@ -3,18 +3,20 @@
 // scanner's scene; a simulated EM tracker on the tip measures the result.
 //
 // Real time on the host's steady clock (the pipeline clock, s since the run's start), three
-// threads (scanner, tracker, servo) built from the pieces the separate processes use.
-// Out: tip-to-target RMS (mm) from the EM samples and from the plant's true tip, after
-// metrics_start_s; latency (ms, volume arrival → first servo cycle applying its estimate);
-// counts. Units: mm, s, image frame. Errors: RunDemo throws std::invalid_argument for bad
-// options, std::runtime_error when the RUN directory cannot be written.
-// Details: docs/live.md#the-demo
+// threads (scanner, tracker runtime, servo runtime: live/tracker_runtime.h,
+// live/servo_runtime.h, the ones `track` and `servo` run).
+// Out: tip-to-target RMS (mm) from the EM samples and from the plant's true tip over the
+// scored window (report/scored_window.h, the one `echoservo report` uses); latency (ms,
+// volume arrival → first servo cycle applying its estimate); counts. Units: mm, s, image frame.
+// Errors: RunDemo throws std::invalid_argument for bad options, std::runtime_error when the RUN
+// directory cannot be written. Details: docs/live.md#the-demo
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -46,7 +48,10 @@ struct DemoOptions {
   // [0, 30]; down to contact (0: the tip held at the tissue's surface; overshooting, it
   // indents the tissue: live/sim_scene.h).
   double standoff_mm = 8.0;
-  double metrics_start_s = 3.0;
+  // The figures' window from this pipeline time on; NaN (the default): the scored window
+  // `echoservo report` uses too (report/scored_window.h: from when the servo follows plus
+  // two heartbeats' settling).
+  double metrics_start_s = std::numeric_limits<double>::quiet_NaN();
   std::uint64_t seed = 1;
   std::filesystem::path out_dir;  // the RUN directory (docs/report.md); empty: not written
   // Also record the volumes the tracker receives to out_dir/volumes.igs.mhd (+ .raw: a
@@ -102,11 +107,14 @@ struct LatencyStats {
 };
 
 struct DemoResult {
-  double tip_to_target_rms_mm = 0.0;       // EM-measured
-  double true_tip_to_target_rms_mm = 0.0;  // plant truth
-  LatencyStats latency;                    // arrival → setpoint applied
-  std::uint64_t volumes = 0;               // acquired
-  std::uint64_t detected = 0;              // volumes with a catheter found
+  double tip_to_target_rms_mm = 0.0;       // EM-measured, over the scored window
+  double true_tip_to_target_rms_mm = 0.0;  // plant truth, over the scored window
+  // The scored window (report/scored_window.h): its start (NaN: nothing scored) and why.
+  double scored_from_s = 0.0;
+  std::string scored_window;
+  LatencyStats latency;              // arrival → setpoint applied
+  std::uint64_t volumes = 0;         // acquired
+  std::uint64_t detected = 0;        // volumes with a catheter found
   std::uint64_t dropped_frames = 0;  // not detected, skipped by a late tracker, or not acquired
   std::uint64_t missed_acquisitions = 0;     // acquisition slots lost to a late renderer
   std::uint64_t tracker_errors = 0;          // volumes the tracker could not process (logged)

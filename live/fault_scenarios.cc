@@ -11,6 +11,7 @@
 
 #include "hw/fault_injection.h"
 #include "live/servo_node.h"
+#include "live/servo_runtime.h"
 #include "live/sim_catheter.h"
 
 namespace echoservo::live {
@@ -32,6 +33,29 @@ estimation::FourierMotion TargetMotion() {
   m.cos_mm = {0.0, 1.5};
   m.sin_mm = {5.0, 0.0};
   return m;
+}
+
+// The estimate of a volume acquired kDelayS before `t`: the target's motion, and the tip as
+// the image saw it then (the true tip kOffsetMm along the axis).
+link::TargetEstimateSample ScenarioEstimate(const estimation::FourierMotion& target,
+                                            std::uint64_t seq, double t,
+                                            const std::deque<std::pair<double, double>>& tips) {
+  const double t_acq = t - kDelayS;
+  double tip_at_acq = tips.front().second;
+  for (const auto& [ts, x] : tips)
+    if (ts <= t_acq) tip_at_acq = x;
+  link::TargetEstimateSample s;
+  s.sequence_number = seq;
+  s.acquisition_time_s = t_acq;
+  s.publication_time_s = t;
+  s.axis = Eigen::Vector3d::UnitZ();
+  s.target_mm = Eigen::Vector3d(0, 0, target.Position(t_acq));
+  s.tip_mm = Eigen::Vector3d(0, 0, tip_at_acq + kOffsetMm);
+  s.motion = target;
+  s.motion.t0_s = 0.0;
+  s.motion.valid_until_s = t_acq + 0.5;
+  s.confidence = 0.9;
+  return s;
 }
 
 // One scenario's knobs: hardware faults, and hooks on each estimate (drop it, delay it,
@@ -64,66 +88,49 @@ FaultScenarioResult Run(const Scenario& sc) {
   r.name = sc.name;
   r.fault = sc.fault;
   r.safe_state_required = sc.safe_state_required;
-  struct Pending {
-    link::TargetEstimateSample sample;
-    double deliver_s;
-  };
-  std::deque<Pending> pending;
   std::deque<std::pair<double, double>> tip_history;  // the true tip, to see it "in the image"
   std::uint64_t seq = 0, injected = 0;
   double err_sq = 0.0;
   std::uint64_t err_n = 0;
   const double period = catheter.servo.period_s;
-  const auto cycles = static_cast<std::uint64_t>(std::llround(kDurationS / period));
-  node.Start(0.0);
-  for (std::uint64_t k = 0; k <= cycles; ++k) {
-    const double t = static_cast<double>(k) * period;
-    const double tip_true = catheter.plant->state(tip_index);
-    tip_history.emplace_back(t, tip_true);
-    while (tip_history.size() > 200) tip_history.pop_front();
-    // A volume acquired every 1/25 s is delivered kDelayS later as an estimate.
-    if (k % static_cast<std::uint64_t>(std::llround(1.0 / (kRateHz * period))) == 0 &&
-        t >= kDelayS) {
-      const double t_acq = t - kDelayS;
-      double tip_at_acq = tip_history.front().second;
-      for (const auto& [ts, x] : tip_history)
-        if (ts <= t_acq) tip_at_acq = x;
-      link::TargetEstimateSample s;
-      s.sequence_number = ++seq;
-      s.acquisition_time_s = t_acq;
-      s.publication_time_s = t;
-      s.axis = Eigen::Vector3d::UnitZ();
-      s.target_mm = Eigen::Vector3d(0, 0, target.Position(t_acq));
-      s.tip_mm = Eigen::Vector3d(0, 0, tip_at_acq + kOffsetMm);
-      s.motion = target;
-      s.motion.t0_s = 0.0;
-      s.motion.valid_until_s = t_acq + 0.5;
-      s.confidence = 0.9;
-      double extra_delay = 0.0;
-      if (!sc.on_estimate || sc.on_estimate(s, extra_delay, injected))
-        pending.push_back({s, t + extra_delay});
-    }
-    while (!pending.empty() && pending.front().deliver_s <= t) {
-      node.HandleTarget(pending.front().sample, t);
-      pending.pop_front();
-    }
-    if (sc.on_cycle) sc.on_cycle(node, t, injected);
-    const ServoCycle c = node.Cycle(t, k);
-    const bool safe = c.mode == link::ServoMode::kHolding ||
-                      c.mode == link::ServoMode::kRetracting || c.mode == link::ServoMode::kStopped;
-    if (t >= kFaultStartS && safe && !r.safe_state_reached) {
-      r.safe_state_reached = true;
-      r.safe_state_after_s = t - kFaultStartS;
-    }
-    const bool in_fault = t >= kFaultStartS && t < sc.fault_end_s + 0.5;
-    if (c.mode == link::ServoMode::kTracking && t >= 2.0 && !in_fault &&
-        std::isfinite(c.record.tip_mm)) {
-      err_sq +=
-          (c.record.tip_mm - c.record.reference_mm) * (c.record.tip_mm - c.record.reference_mm);
-      ++err_n;
-    }
-    r.final_mode = std::string(link::ToString(c.mode));
-  }
+  const auto every = static_cast<std::uint64_t>(std::llround(1.0 / (kRateHz * period)));
+  // The servo runtime on simulated time; the scanner's estimates fed in process.
+  DelayedEstimates estimates;
+  ServoRuntimeOptions ro;
+  ro.clock = ServoClock::kSimulated;
+  ro.duration_s = kDurationS;
+  ro.estimates = &estimates;
+  ServoRuntime(node, ro).Run(
+      [&](std::uint64_t k, double t) {
+        const double tip_true = catheter.plant->state(tip_index);
+        tip_history.emplace_back(t, tip_true);
+        while (tip_history.size() > 200) tip_history.pop_front();
+        // A volume acquired every 1/25 s is delivered kDelayS later as an estimate.
+        if (k % every == 0 && t >= kDelayS) {
+          link::TargetEstimateSample s = ScenarioEstimate(target, ++seq, t, tip_history);
+          double extra_delay = 0.0;
+          if (!sc.on_estimate || sc.on_estimate(s, extra_delay, injected))
+            estimates.Push(s, t + extra_delay);
+        }
+        if (sc.on_cycle) sc.on_cycle(node, t, injected);
+      },
+      [&](std::uint64_t, double t, const ServoCycle& c) {
+        const bool safe = c.mode == link::ServoMode::kHolding ||
+                          c.mode == link::ServoMode::kRetracting ||
+                          c.mode == link::ServoMode::kStopped;
+        if (t >= kFaultStartS && safe && !r.safe_state_reached) {
+          r.safe_state_reached = true;
+          r.safe_state_after_s = t - kFaultStartS;
+        }
+        const bool in_fault = t >= kFaultStartS && t < sc.fault_end_s + 0.5;
+        if (c.mode == link::ServoMode::kTracking && t >= 2.0 && !in_fault &&
+            std::isfinite(c.record.tip_mm)) {
+          err_sq +=
+              (c.record.tip_mm - c.record.reference_mm) * (c.record.tip_mm - c.record.reference_mm);
+          ++err_n;
+        }
+        r.final_mode = std::string(link::ToString(c.mode));
+      });
   const ServoNodeStats& st = node.stats();
   r.injected = injected + hardware.injected();
   r.detected = st.estimates_rejected + st.commands_rejected + st.sensor_faults +

@@ -504,4 +504,30 @@ std::string SettingsJson(const PipelineSettings& s) {
   return out + "}";
 }
 
+std::vector<Assignment> RequireStages(const std::vector<Assignment>& assignments,
+                                      std::string_view command,
+                                      const std::vector<std::string>& stages) {
+  for (const Assignment& a : assignments) {
+    const std::string& stage = RequireParameter(a.first).stage;
+    if (std::find(stages.begin(), stages.end(), stage) != stages.end()) continue;
+    std::string runs;
+    for (const std::string& st : stages) runs += (runs.empty() ? "" : ", ") + st + ".*";
+    throw std::invalid_argument("--set " + FormatAssignment(a) +
+                                ": the parameter does not apply to `" + std::string(command) +
+                                "` (its stage '" + stage + "' does not run there; it runs " + runs +
+                                ")");
+  }
+  return assignments;
+}
+
+void ApplyFor(std::string_view command, const std::vector<std::string>& stages,
+              const std::vector<Assignment>& assignments, PipelineSettings& s) {
+  RequireStages(assignments, command, stages);
+  try {
+    Apply(assignments, s);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string(command) + " --set: " + e.what());
+  }
+}
+
 }  // namespace echoservo::live

@@ -79,6 +79,24 @@ std::vector<Assignment> ParseAssignments(const std::vector<std::string>& texts,
 // follower's and the servo's own Validate); throws std::invalid_argument.
 void Apply(const std::vector<Assignment>& assignments, PipelineSettings& s);
 
+// The stages each runtime runs, for the one --set filter (RequireStages): the tracker
+// runtime's (`track`), the servo runtime's (`servo`), both (`demo`, `tune trial`).
+inline const std::vector<std::string> kTrackerStages = {"scanner", "detector", "target",
+                                                        "predictor"};
+inline const std::vector<std::string> kServoStages = {"follower", "servo"};
+inline const std::vector<std::string> kAllStages = {"scanner",   "detector", "target",
+                                                    "predictor", "follower", "servo"};
+
+// The one --set filter of every command: each assignment's stage must be among `stages`,
+// else std::invalid_argument "--set NAME=VALUE: the parameter does not apply to `command`
+// (its stage 'S' does not run there; it runs scanner.*, detector.*, ...)". Returns them.
+std::vector<Assignment> RequireStages(const std::vector<Assignment>& assignments,
+                                      std::string_view command,
+                                      const std::vector<std::string>& stages);
+// RequireStages, then Apply; errors name `command` and --set.
+void ApplyFor(std::string_view command, const std::vector<std::string>& stages,
+              const std::vector<Assignment>& assignments, PipelineSettings& s);
+
 // "name=value" with the shortest text that reads back to the same double ("%.17g" trimmed).
 std::string FormatAssignment(const Assignment& a);
 

@@ -10,6 +10,7 @@
 
 #include "estimation/harmonic_fit.h"
 #include "report/html_page.h"
+#include "report/scored_window.h"
 #include "report/svg_plot.h"
 
 namespace echoservo::report {
@@ -48,8 +49,7 @@ double Rms(const std::vector<double>& v) {
 }  // namespace
 
 std::string WindowText(const AccuracyMetrics& m) {
-  if (!std::isfinite(m.window_from_s)) return m.window_reason;
-  return "from " + Fix(m.window_from_s, 2) + " s: " + m.window_reason;
+  return Describe(GivenWindow(m.window_from_s, m.window_reason));
 }
 
 namespace {
@@ -160,26 +160,26 @@ void BeatAndPhase(const estimation::FourierMotion& motion, int bins, AccuracyMet
   }
 }
 
-// The scored window: options.from_s when finite, else from the first servo.csv row in the
-// following mode (control/target_follower.cc names it "following"), else the whole run.
+// The scored window (report/scored_window.h): options.from_s when finite, else from the
+// first servo.csv row in the following mode (control/target_follower.cc names it "following")
+// plus the settling time, else the whole run.
 void SetWindow(const formats::RunRecord& run, const AccuracyOptions& o, AccuracyMetrics& m) {
+  ScoredWindow w;
   if (std::isfinite(o.from_s)) {
-    m.window_from_s = o.from_s;
-    m.window_reason = o.from_reason;
-    return;
-  }
-  if (!run.has_servo || run.servo.empty()) {
-    m.window_reason = "whole run: no servo.csv";
-    return;
-  }
-  for (const formats::ServoRecord& r : run.servo) {
-    if (r.mode == kFollowingMode) {
-      m.window_from_s = r.t_s;
-      m.window_reason = "servo began following";
-      return;
+    w = GivenWindow(o.from_s, o.from_reason);
+  } else if (!run.has_servo || run.servo.empty()) {
+    w = WholeRun("whole run: no servo.csv");
+  } else {
+    w = WholeRun("whole run: servo.csv has no '" + std::string(kFollowingMode) + "' row");
+    for (const formats::ServoRecord& r : run.servo) {
+      if (r.mode == kFollowingMode) {
+        w = WindowAfterFollowing(r.t_s, run.info.heart_rate_hz);
+        break;
+      }
     }
   }
-  m.window_reason = "whole run: servo.csv has no '" + std::string(kFollowingMode) + "' row";
+  m.window_from_s = w.from_s;
+  m.window_reason = w.reason;
 }
 
 DroppedFrames CountDropped(const formats::RunRecord& run) {

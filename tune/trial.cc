@@ -23,8 +23,11 @@
 #include "imaging/io/truth_fields.h"
 #include "link/samples.h"
 #include "live/servo_node.h"
+#include "live/servo_runtime.h"
 #include "live/sim_catheter.h"
 #include "live/tracker_node.h"
+#include "live/tracker_runtime.h"
+#include "live/tracker_source.h"
 #include "report/accuracy_report.h"
 
 namespace echoservo::tune {
@@ -233,44 +236,37 @@ TrialResult RunTrial(const TrialRequest& request, TrialTrace* trace) {
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(std::string("trial settings: ") + e.what());
   }
-  std::unique_ptr<imaging::SequenceReader> reader = TrialOpen(rec, paths.volumes);
-  const imaging::PlusSequence& seq = reader->sequence();
   TrialResult result;
-  const auto loaded = Clock::now();
-  result.load_s = TrialSeconds(start, loaded);
-
-  // Replay: every volume in order through the tracker node (no link, no RUN writer).
-  live::TrackerNode node(settings.tracker, nullptr, nullptr);
+  // Replay: every volume in order through the tracker runtime (no link, no RUN writer), the
+  // one `track --replay` and `demo` run.
   std::vector<TrialVolume> vols;
-  vols.reserve(seq.frames.size());
-  double last_t = -std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < seq.frames.size(); ++i) {
-    std::optional<imaging::Volume> read;
-    try {
-      read.emplace(reader->ReadVolume(i));
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument("recording " + rec + ": " + e.what());
-    }
-    const imaging::Volume& v = *read;
-    const double t = v.timestamp_s();
-    if (!(t > last_t)) {
-      ++result.skipped;
-      continue;
-    }
-    last_t = t;
+  live::TrackerRuntimeOptions ro;
+  ro.node = settings.tracker;
+  ro.on_tracked = [&](const live::TrackedVolume& r, const live::SourceVolume& v,
+                      double process_ms) {
     TrialVolume tv;
-    tv.t_s = t - settings.tracker.stamp_delay_s;
-    tv.truth = TrialTruth(rec, seq.frames[i], i);
+    tv.t_s = v.stamp_s - settings.tracker.stamp_delay_s;
+    tv.truth = v.truth;
     tv.true_s = tv.truth && tv.truth->acquisition_s ? *tv.truth->acquisition_s : tv.t_s;
-    const auto p0 = Clock::now();
-    live::TrackedVolume r = node.Process(v, t, t, [t] { return t; });
-    tv.process_ms = 1e3 * TrialSeconds(p0, Clock::now());
+    tv.process_ms = process_ms;
     tv.detection = r.detection;
     tv.measured = r.measured;
     tv.heartbeat = r.heartbeat;
-    tv.estimate = std::move(r.estimate);
+    tv.estimate = r.estimate;
     vols.push_back(std::move(tv));
+  };
+  live::TrackerRuntime runtime(ro);
+  std::unique_ptr<live::ReplaySource> source;
+  try {
+    source = std::make_unique<live::ReplaySource>(paths.volumes);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("recording " + rec + ": unreadable (" + e.what() + ")");
   }
+  const auto loaded = Clock::now();
+  result.load_s = TrialSeconds(start, loaded);
+  const live::TrackerRunResult replay = runtime.Run(*source);
+  const live::TrackerNode& node = runtime.node();
+  result.skipped = replay.source.skipped;
   if (result.skipped > 0)
     result.notes.push_back(std::to_string(result.skipped) +
                            " volume(s) skipped: timestamp not increasing");
@@ -444,43 +440,49 @@ TrialResult RunTrial(const TrialRequest& request, TrialTrace* trace) {
     // The score's anchor: the true tip of the first frame, else the first detection.
     const bool truth_anchor = vols.front().truth && vols.front().truth->catheter_visible;
     const double anchor_s = truth_anchor ? vols.front().truth->tip_mm.dot(*axis) : first_tip_s;
-    const double x0 = plant.truth().tip_mm;
-    const double anchor_x = x0;  // the plant rests until the first estimate arrives
+    const double anchor_x = plant.truth().tip_mm;  // the plant rests until an estimate arrives
     const std::optional<estimation::TraceInterpolator>& ref_at = truth_at ? truth_at : measured_at;
     const double standoff = settings.follower.standoff_mm;
-    const double t_end = vols.back().true_s;
     TrialRms loop;
-    servo.Start(t0);
+    // The servo runtime on simulated time, its estimates fed in process after the imaging
+    // delay: each one's tip is the plant's at its acquisition, as the image would show it.
+    live::DelayedEstimates estimates;
+    live::ServoRuntimeOptions sro;
+    sro.clock = live::ServoClock::kSimulated;
+    sro.t0_s = t0;
+    sro.duration_s = std::max(vols.back().true_s - t0, period);
+    sro.estimates = &estimates;
     std::size_t next = 0;
-    link::TargetEstimateSample sample;
-    for (std::uint64_t k = 0;; ++k) {
-      const double t = t0 + static_cast<double>(k) * period;
-      if (t > t_end) break;
-      while (next < vols.size() && vols[next].true_s + delay <= t + 1e-12) {
-        const TrialVolume& v = vols[next++];
-        if (!v.estimate) continue;
-        const double x_acq = tip_at(v.true_s);
-        if (!c0_known) {
-          c0 = first_tip_s - x_acq;
-          c0_known = true;
-        }
-        sample = *v.estimate;
-        sample.publication_time_s = v.true_s + delay;
-        sample.axis = *axis;
-        sample.tip_mm = *axis * (x_acq + c0);
-        servo.HandleTarget(sample, t);
-      }
-      const live::ServoCycle c = servo.Cycle(t, k);
-      const double x = plant.truth().tip_mm;
-      tip_hist.push_back(x);
-      double target_s = 0.0;
-      const bool have_ref = ref_at->At(t, target_s);
-      const double tip_s = anchor_s + (x - anchor_x);
-      if (t >= from && have_ref) loop.Add(tip_s - (target_s - standoff));
-      if (trace && k % kTrialLoopRowEvery == 0)
-        trace->loop.push_back({t, tip_s, have_ref ? target_s - standoff : TrialNaN(),
-                               c.record.base_mm, control::ToString(servo.follower().mode())});
-    }
+    live::ServoRuntime(servo, sro)
+        .Run(
+            [&](std::uint64_t, double t) {
+              while (next < vols.size() && vols[next].true_s + delay <= t + 1e-12) {
+                const TrialVolume& v = vols[next++];
+                if (!v.estimate) continue;
+                const double x_acq = tip_at(v.true_s);
+                if (!c0_known) {
+                  c0 = first_tip_s - x_acq;
+                  c0_known = true;
+                }
+                link::TargetEstimateSample sample = *v.estimate;
+                sample.publication_time_s = v.true_s + delay;
+                sample.axis = *axis;
+                sample.tip_mm = *axis * (x_acq + c0);
+                estimates.Push(sample, t);
+              }
+            },
+            [&](std::uint64_t k, double t, const live::ServoCycle& c) {
+              const double x = plant.truth().tip_mm;
+              tip_hist.push_back(x);
+              double target_s = 0.0;
+              const bool have_ref = ref_at->At(t, target_s);
+              const double tip_s = anchor_s + (x - anchor_x);
+              if (t >= from && have_ref) loop.Add(tip_s - (target_s - standoff));
+              if (trace && k % kTrialLoopRowEvery == 0)
+                trace->loop.push_back({t, tip_s, have_ref ? target_s - standoff : TrialNaN(),
+                                       c.record.base_mm,
+                                       control::ToString(servo.follower().mode())});
+            });
     if (servo.stats().limit_violations > 0)
       result.notes.push_back("loop: " + std::to_string(servo.stats().limit_violations) +
                              " cycle(s) commanded outside a limit");

@@ -9,6 +9,7 @@
 // "em_stream": the --em-connect client's counts (RUN/em_stream.json; null without it), and
 // "igtl_serve": the --igtl-serve detection server's counts (docs/slicer.md; null without it).
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -97,6 +98,10 @@ void RunDemoCommand(const DemoArgs& a) {
     const nlohmann::json j = {
         {"tip_to_target_rms_mm", r.tip_to_target_rms_mm},
         {"true_tip_to_target_rms_mm", r.true_tip_to_target_rms_mm},
+        {"scored_window",
+         {{"from_s", std::isfinite(r.scored_from_s) ? nlohmann::json(r.scored_from_s)
+                                                    : nlohmann::json(nullptr)},
+          {"reason", r.scored_window}}},
         {"latency_ms",
          {{"p50", r.latency.p50_ms},
           {"p99", r.latency.p99_ms},
@@ -164,6 +169,10 @@ void RunDemoCommand(const DemoArgs& a) {
   std::printf(
       "tip-to-target RMS: %.3f mm (EM tracker), %.3f mm (true tip); seed water tank: 0.86 mm\n",
       r.tip_to_target_rms_mm, r.true_tip_to_target_rms_mm);
+  if (std::isfinite(r.scored_from_s))
+    std::printf("scored window: from %.2f s: %s\n", r.scored_from_s, r.scored_window.c_str());
+  else
+    std::printf("scored window: %s\n", r.scored_window.c_str());
   std::printf("latency arrival → setpoint: p50 %.2f ms, p99 %.2f ms, max %.2f ms (%llu volumes)\n",
               r.latency.p50_ms, r.latency.p99_ms, r.latency.max_ms,
               static_cast<unsigned long long>(r.latency.count));
@@ -221,7 +230,9 @@ void AddLiveCommands(CLI::App& app) {
       ->check(CLI::Range(0.1, 20.0));
   demo->add_option("--standoff", o.standoff_mm, "tip-to-target standoff along the axis, mm")
       ->check(CLI::Range(0.0, 30.0));
-  demo->add_option("--metrics-start", o.metrics_start_s, "figures from this time on, s")
+  demo->add_option("--metrics-start", o.metrics_start_s,
+                   "figures from this time on, s (default: the scored window `report` uses, "
+                   "from when the servo follows plus two heartbeats)")
       ->check(CLI::Range(0.0, 3600.0));
   demo->add_option("--seed", o.seed, "simulation seed");
   demo->add_option("--harmonics", o.harmonics,

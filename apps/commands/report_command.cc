@@ -221,8 +221,10 @@ double WriteRunReport(const std::string& run_dir, const std::string& html_path, 
   ReportFlags f;
   f.run = run_dir;
   f.out = html_path;
-  f.from_s = from_s;
-  f.from_reason = "demo --metrics-start";
+  if (std::isfinite(from_s)) {  // else the scored window (report/scored_window.h)
+    f.from_s = from_s;
+    f.from_reason = "demo --metrics-start";
+  }
   return Produce(f).metrics.rms_mm;
 }
 

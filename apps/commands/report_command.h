@@ -12,8 +12,9 @@ namespace echoservo::apps {
 
 void AddReportCommand(CLI::App& app);
 
-// The report of a RUN directory with its own em.csv and calibration, from `from_s` on,
-// written to `html_path`; returns the tip-to-target RMS (mm). Throws like `report`.
+// The report of a RUN directory with its own em.csv and calibration, from `from_s` on (NaN:
+// the scored window, report/scored_window.h, as `report RUN` gives by default), written to
+// `html_path`; returns the tip-to-target RMS (mm). Throws like `report`.
 double WriteRunReport(const std::string& run_dir, const std::string& html_path, double from_s);
 
 }  // namespace echoservo::apps

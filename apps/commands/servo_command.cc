@@ -25,10 +25,13 @@
 #include "apps/commands/link_flags.h"
 #include "apps/commands/live_commands.h"
 #include "apps/commands/realtime_flags.h"
+#include "apps/commands/set_flags.h"
 #include "hw/fault_injection.h"
 #include "live/pipeline_clock.h"
+#include "live/pipeline_parameters.h"
 #include "live/servo_cycle_clock.h"
 #include "live/servo_node.h"
+#include "live/servo_runtime.h"
 #include "live/sim_catheter.h"
 
 namespace echoservo::apps {
@@ -37,6 +40,7 @@ namespace {
 struct ServoArgs {
   LinkFlags link;
   RealtimeFlags rt;
+  SetFlags set;  // --set NAME=VALUE: the follower's and the servo's parameters
   double duration_s = 0.0;
   double standoff_mm = 8.0;
   bool auto_enable = false;
@@ -55,36 +59,15 @@ nlohmann::json RejectionsJson(const link::RejectionCounters& c) {
   return j;
 }
 
-void RunServo(const ServoArgs& a) {
-  live::ServoNodeOptions so;
-  so.follower.standoff_mm = a.standoff_mm;
-  so.follower.offset_gain = 0.05;
-  so.follower.estimate_scale = true;  // the scanner's sound-speed scaling of image mm
-  so.follower.stale_after_s = a.stale_after_s;
-  so.follower.retract_after_s = a.retract_after_s;
-  so.auto_enable = a.auto_enable;
-  so.state_rate_hz = a.state_rate_hz;
-  so.Validate();
-  live::SimCatheter catheter = live::MakeSimCatheter(a.sheath_id_mm, a.guidewire_od_mm, a.seed);
-  const control::RealtimeOptions rt = ToRealtimeOptions(a.rt);
-  so.watchdog = ToWatchdogConfig(a.rt, catheter.servo.period_s);
-  const std::vector<hw::InjectedFault> slow_reads = ToSlowReads(a.rt);
-  link::Participant participant(ToParticipantOptions(a.link, "echoservo_servo", "servo"));
-  const live::PipelineClock clock(0.05);
-  so.link_offset_s = clock.link_offset_s();
-  // A slow driver on purpose (--inject-slow-read): the servo reads through it.
-  std::optional<hw::FaultInjectingHardware> slow_hw;
-  if (!slow_reads.empty()) slow_hw.emplace(*catheter.plant, slow_reads);
-  hw::HardwareInterface& hardware =
-      slow_hw ? static_cast<hw::HardwareInterface&>(*slow_hw) : *catheter.plant;
-  live::ServoNode node(hardware, catheter.servo, std::move(catheter.compensator), so, &participant);
-  InstallStopSignals();
-  if (!a.json)
-    std::fprintf(stderr, "servo: 1 kHz on the simulated catheter, DDS domain %d; %s\n",
-                 a.link.domain,
-                 a.auto_enable ? "following the first estimate" : "waiting for an ENABLE command");
-
-  const double period = catheter.servo.period_s;
+// What `servo` watches each cycle: the mode timeline, the image response check, the time to
+// the safe state after the tracker went away, the tip's error to its setpoint while following,
+// and where the servo looks while no tracker is there.
+struct ServoWatch {
+  ServoWatch(const ServoArgs& args, const live::ServoNode& n, double period)
+      : a(args), node(n), period_s(period) {}
+  const ServoArgs& a;
+  const live::ServoNode& node;
+  double period_s;
   link::ServoMode mode = link::ServoMode::kIdle;
   nlohmann::json timeline = nlohmann::json::array();
   std::optional<double> tracker_lost_s, safe_s;
@@ -96,23 +79,11 @@ void RunServo(const ServoArgs& a) {
   std::optional<double> image_fault_s, image_fault_after_following_s, image_hold_s, image_retract_s;
   double clamp_after_image_fault_s = 0.0;
   // No tracker matched on the target topic: said after 2 s, then every 5 s until one is.
-  constexpr double kNoPeerReportS = 5.0;
   double next_no_peer_report_s = 2.0;
   bool peer_reported_missing = false, peer_seen = false;
-  // This thread becomes the servo thread: the DDS threads and the node's state publisher
-  // exist already and keep their normal priority.
-  live::ServoCycleClock cycle_clock(clock, period, &node, rt);
-  for (const std::string& r : cycle_clock.realtime().refusals)
-    std::fprintf(stderr, "servo: %s\n", r.c_str());
-  if (!a.json)
-    std::fprintf(stderr, "servo: real time: %s\n", cycle_clock.realtime().Summary().c_str());
-  node.Start(0.0);
-  std::uint64_t k = 0;
-  for (;; ++k) {
-    const double t = static_cast<double>(k) * period;
-    if ((a.duration_s > 0 && t > a.duration_s) || StopRequested()) break;
-    cycle_clock.Wait(k);
-    const live::ServoCycle c = node.Cycle(t, k);
+
+  void Cycle(std::uint64_t k, double t, const live::ServoCycle& c) {
+    constexpr double kNoPeerReportS = 5.0;
     if (!peer_seen && k % 100 == 0) {  // 10 Hz: where the servo looks, while nothing is there
       if (node.target_link_stats().matched_publishers > 0) {
         peer_seen = true;
@@ -142,7 +113,7 @@ void RunServo(const ServoArgs& a) {
       if (!image_retract_s &&
           (c.mode == link::ServoMode::kRetracting || c.mode == link::ServoMode::kStopped))
         image_retract_s = t;
-      if (c.clamped) clamp_after_image_fault_s += period;
+      if (c.clamped) clamp_after_image_fault_s += period_s;
     }
     if (node.tracker_gone() && !tracker_lost_s) tracker_lost_s = t;
     if (tracker_lost_s && !safe_s &&
@@ -151,82 +122,139 @@ void RunServo(const ServoArgs& a) {
     if (mode == link::ServoMode::kTracking) {
       if (following_since < 0) following_since = t;
       if (t - following_since >= 1.0) {  // after the first second of following
-        err_sq +=
-            (c.record.tip_mm - c.record.reference_mm) * (c.record.tip_mm - c.record.reference_mm);
+        const double e = c.record.tip_mm - c.record.reference_mm;
+        err_sq += e * e;
         ++err_n;
       }
     } else {
       following_since = -1.0;
     }
-    cycle_clock.Done();
   }
+};
+
+nlohmann::json OrNull(const std::optional<double>& v) {
+  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+}
+
+nlohmann::json ServoJson(const ServoWatch& w, const live::ServoNodeStats& s,
+                         const link::SubscriberStats& ls, const nlohmann::json& timing_json,
+                         std::uint64_t overruns) {
+  auto since_fault = [&](const std::optional<double>& t) {
+    return t ? nlohmann::json(*t - *w.image_fault_s) : nlohmann::json(nullptr);
+  };
+  return {{"cycles", s.cycles},
+          {"overruns", overruns},
+          {"estimates_accepted", s.estimates_accepted},
+          {"estimates_rejected", s.estimates_rejected},
+          {"link_rejections", RejectionsJson(ls.validation)},
+          {"commands_applied", s.commands_applied},
+          {"commands_rejected", s.commands_rejected},
+          {"states_published", s.states_published},
+          {"fault_events", s.fault_events},
+          {"limit_violations", s.limit_violations},
+          {"limit_interventions", s.limit_interventions},
+          {"time_at_clamp_s", s.time_at_clamp_s},
+          {"image_not_responding", s.image_not_responding},
+          {"image_fault_s", OrNull(w.image_fault_s)},
+          {"image_fault_after_following_s", OrNull(w.image_fault_after_following_s)},
+          {"image_fault_hold_after_s", since_fault(w.image_hold_s)},
+          {"image_fault_retract_after_s", since_fault(w.image_retract_s)},
+          {"time_at_clamp_after_image_fault_s",
+           w.image_fault_s ? nlohmann::json(w.clamp_after_image_fault_s) : nlohmann::json(nullptr)},
+          {"resumes", s.resumes},
+          {"final_mode", std::string(link::ToString(w.mode))},
+          {"timeline", w.timeline},
+          {"tracker_lost_s", OrNull(w.tracker_lost_s)},
+          {"safe_state_after_s", w.tracker_lost_s && w.safe_s
+                                     ? nlohmann::json(*w.safe_s - *w.tracker_lost_s)
+                                     : nlohmann::json(nullptr)},
+          {"tip_to_setpoint_rms_mm",
+           w.err_n ? nlohmann::json(std::sqrt(w.err_sq / static_cast<double>(w.err_n)))
+                   : nlohmann::json(nullptr)},
+          {"realtime", timing_json["realtime"]},
+          {"timing", timing_json["timing"]},
+          {"deadline", timing_json["deadline"]}};
+}
+
+void PrintServoSummary(const live::ServoNodeStats& s, const ServoWatch& w,
+                       const live::ServoRunResult& r, const control::DeadlineWatchdogConfig&) {
+  const control::CycleTimingReport& timing = r.timing;
+  std::printf(
+      "servo: %llu cycles (%llu overruns), estimates %llu accepted / %llu rejected, commands "
+      "%llu, limit violations %llu, final mode %s\n",
+      static_cast<unsigned long long>(s.cycles), static_cast<unsigned long long>(timing.overruns),
+      static_cast<unsigned long long>(s.estimates_accepted),
+      static_cast<unsigned long long>(s.estimates_rejected),
+      static_cast<unsigned long long>(s.commands_applied),
+      static_cast<unsigned long long>(s.limit_violations),
+      std::string(link::ToString(w.mode)).c_str());
+  std::printf(
+      "servo timing: wake-up latency p50 %.0f / p99 %.0f / p99.9 %.0f / max %.0f us, cycle "
+      "p99 %.0f us, overruns %.3f %%; deadline holds %llu, retractions %llu; %s\n",
+      timing.wakeup_latency.p50_us, timing.wakeup_latency.p99_us, timing.wakeup_latency.p999_us,
+      timing.wakeup_latency.max_us, timing.cycle_duration.p99_us, 100.0 * timing.overrun_fraction,
+      static_cast<unsigned long long>(s.deadline_holds),
+      static_cast<unsigned long long>(s.deadline_retracts), r.realtime.Summary().c_str());
+}
+
+void RunServo(const ServoArgs& a) {
+  // The follower and the servo: the pipeline's settings (live/pipeline_parameters.h), the
+  // flags, then --set for the stages `servo` runs.
+  live::PipelineSettings settings = live::DefaultSettings();
+  settings.follower.standoff_mm = a.standoff_mm;
+  settings.follower.stale_after_s = a.stale_after_s;
+  settings.follower.retract_after_s = a.retract_after_s;
+  live::SimCatheter catheter = live::MakeSimCatheter(a.sheath_id_mm, a.guidewire_od_mm, a.seed);
+  settings.servo = catheter.servo;
+  live::ApplyFor("servo", live::kServoStages, a.set.Parsed(), settings);
+  live::ServoNodeOptions so;
+  so.follower = settings.follower;
+  so.auto_enable = a.auto_enable;
+  so.state_rate_hz = a.state_rate_hz;
+  so.watchdog = ToWatchdogConfig(a.rt, settings.servo.period_s);
+  so.Validate();
+  const std::vector<hw::InjectedFault> slow_reads = ToSlowReads(a.rt);
+  link::Participant participant(ToParticipantOptions(a.link, "echoservo_servo", "servo"));
+  const live::PipelineClock clock(0.05);
+  so.link_offset_s = clock.link_offset_s();
+  // A slow driver on purpose (--inject-slow-read): the servo reads through it.
+  std::optional<hw::FaultInjectingHardware> slow_hw;
+  if (!slow_reads.empty()) slow_hw.emplace(*catheter.plant, slow_reads);
+  hw::HardwareInterface& hardware =
+      slow_hw ? static_cast<hw::HardwareInterface&>(*slow_hw) : *catheter.plant;
+  live::ServoNode node(hardware, settings.servo, std::move(catheter.compensator), so, &participant);
+  InstallStopSignals();
+  if (!a.json)
+    std::fprintf(stderr, "servo: 1 kHz on the simulated catheter, DDS domain %d; %s\n",
+                 a.link.domain,
+                 a.auto_enable ? "following the first estimate" : "waiting for an ENABLE command");
+  // The servo runtime on this thread (raised to real time: the DDS threads and the node's
+  // state publisher exist already and keep their normal priority).
+  live::ServoRuntimeOptions ro;
+  ro.clock = live::ServoClock::kRealtime;
+  ro.pipeline_clock = &clock;
+  ro.realtime = ToRealtimeOptions(a.rt);
+  ro.duration_s = a.duration_s;
+  ro.stop = [] { return StopRequested(); };
+  ServoWatch watch(a, node, settings.servo.period_s);
+  const live::ServoRunResult r = live::ServoRuntime(node, ro).Run(
+      nullptr,
+      [&watch](std::uint64_t k, double t, const live::ServoCycle& c) { watch.Cycle(k, t, c); },
+      [&a](const control::RealtimeStatus& rt) {
+        for (const std::string& line : rt.refusals)
+          std::fprintf(stderr, "servo: %s\n", line.c_str());
+        if (!a.json) std::fprintf(stderr, "servo: real time: %s\n", rt.Summary().c_str());
+      });
   node.WaitStatesPublished(1.0);  // the publisher thread's last state, counted
   const live::ServoNodeStats& s = node.stats();
-  const control::CycleTimingReport timing = cycle_clock.Report();
-  const std::uint64_t overruns = timing.overruns;
   const nlohmann::json timing_json = nlohmann::json::parse(live::ServoTimingJson(
-      cycle_clock.realtime(), timing, so.watchdog, s.deadline_holds, s.deadline_retracts));
-  const link::SubscriberStats ls = node.target_link_stats();
-  const nlohmann::json j = {
-      {"cycles", s.cycles},
-      {"overruns", overruns},
-      {"estimates_accepted", s.estimates_accepted},
-      {"estimates_rejected", s.estimates_rejected},
-      {"link_rejections", RejectionsJson(ls.validation)},
-      {"commands_applied", s.commands_applied},
-      {"commands_rejected", s.commands_rejected},
-      {"states_published", s.states_published},
-      {"fault_events", s.fault_events},
-      {"limit_violations", s.limit_violations},
-      {"limit_interventions", s.limit_interventions},
-      {"time_at_clamp_s", s.time_at_clamp_s},
-      {"image_not_responding", s.image_not_responding},
-      {"image_fault_s", image_fault_s ? nlohmann::json(*image_fault_s) : nlohmann::json(nullptr)},
-      {"image_fault_after_following_s", image_fault_after_following_s
-                                            ? nlohmann::json(*image_fault_after_following_s)
-                                            : nlohmann::json(nullptr)},
-      {"image_fault_hold_after_s",
-       image_hold_s ? nlohmann::json(*image_hold_s - *image_fault_s) : nlohmann::json(nullptr)},
-      {"image_fault_retract_after_s", image_retract_s
-                                          ? nlohmann::json(*image_retract_s - *image_fault_s)
-                                          : nlohmann::json(nullptr)},
-      {"time_at_clamp_after_image_fault_s",
-       image_fault_s ? nlohmann::json(clamp_after_image_fault_s) : nlohmann::json(nullptr)},
-      {"resumes", s.resumes},
-      {"final_mode", std::string(link::ToString(mode))},
-      {"timeline", timeline},
-      {"tracker_lost_s",
-       tracker_lost_s ? nlohmann::json(*tracker_lost_s) : nlohmann::json(nullptr)},
-      {"safe_state_after_s", tracker_lost_s && safe_s ? nlohmann::json(*safe_s - *tracker_lost_s)
-                                                      : nlohmann::json(nullptr)},
-      {"tip_to_setpoint_rms_mm",
-       err_n ? nlohmann::json(std::sqrt(err_sq / static_cast<double>(err_n)))
-             : nlohmann::json(nullptr)},
-      {"realtime", timing_json["realtime"]},
-      {"timing", timing_json["timing"]},
-      {"deadline", timing_json["deadline"]}};
-  if (a.json) {
-    std::cout << j.dump(2) << "\n";
-  } else {
-    std::printf(
-        "servo: %llu cycles (%llu overruns), estimates %llu accepted / %llu rejected, commands "
-        "%llu, "
-        "limit violations %llu, final mode %s\n",
-        static_cast<unsigned long long>(s.cycles), static_cast<unsigned long long>(overruns),
-        static_cast<unsigned long long>(s.estimates_accepted),
-        static_cast<unsigned long long>(s.estimates_rejected),
-        static_cast<unsigned long long>(s.commands_applied),
-        static_cast<unsigned long long>(s.limit_violations),
-        std::string(link::ToString(mode)).c_str());
-    std::printf(
-        "servo timing: wake-up latency p50 %.0f / p99 %.0f / p99.9 %.0f / max %.0f us, cycle "
-        "p99 %.0f us, overruns %.3f %%; deadline holds %llu, retractions %llu; %s\n",
-        timing.wakeup_latency.p50_us, timing.wakeup_latency.p99_us, timing.wakeup_latency.p999_us,
-        timing.wakeup_latency.max_us, timing.cycle_duration.p99_us, 100.0 * timing.overrun_fraction,
-        static_cast<unsigned long long>(s.deadline_holds),
-        static_cast<unsigned long long>(s.deadline_retracts),
-        cycle_clock.realtime().Summary().c_str());
-  }
+      r.realtime, r.timing, so.watchdog, s.deadline_holds, s.deadline_retracts));
+  if (a.json)
+    std::cout
+        << ServoJson(watch, s, node.target_link_stats(), timing_json, r.timing.overruns).dump(2)
+        << "\n";
+  else
+    PrintServoSummary(s, watch, r, so.watchdog);
 }
 
 }  // namespace
@@ -256,6 +284,7 @@ void AddServoCommand(CLI::App& app) {
       ->check(CLI::Range(0.01, 5.0));
   cmd->add_option("--retract-after", a->retract_after_s, "retract after holding this long, s")
       ->check(CLI::Range(0.0, 30.0));
+  AddSetFlags(*cmd, a->set);
   cmd->add_flag("--json", a->json, "print the summary as JSON");
   cmd->callback([a] { RunServo(*a); });
 }

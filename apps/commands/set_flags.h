@@ -1,8 +1,9 @@
-// `--set name=value` (repeatable) on `track`, `demo`, `detect` and `tune trial`: a tunable
+// `--set name=value` (repeatable) on `track`, `servo`, `demo`, `detect` and `tune trial`: a tunable
 // parameter by its dotted name (live/pipeline_parameters.h, `echoservo tune params`), so a
 // setting a study found can be replayed by hand. Checked when the command runs: an unknown
 // name or a value outside its bounds is an error naming the flag and the parameter; so is a
-// parameter whose stage the command does not run (ParsedFor).
+// parameter whose stage the command does not run (ParsedFor: live::RequireStages, the one
+// filter every command uses).
 #pragma once
 
 #include <string>

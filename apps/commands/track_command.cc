@@ -42,14 +42,13 @@
 #include "formats/run_dir_guard.h"
 #include "formats/run_record.h"
 #include "imaging/igtl/ingest.h"
-#include "imaging/io/async_sequence_writer.h"
-#include "imaging/io/recording.h"
-#include "link/clock.h"
-#include "live/delayed_scanner.h"
+#include "live/igtl_source.h"
 #include "live/pipeline_clock.h"
 #include "live/pipeline_parameters.h"
 #include "live/sim_scene.h"
 #include "live/tracker_node.h"
+#include "live/tracker_runtime.h"
+#include "live/tracker_source.h"
 
 namespace echoservo::apps {
 namespace {
@@ -122,6 +121,119 @@ formats::RunInfo ReplayInfo(const fs::path& file) {
   return info;
 }
 
+// The run's source: exactly one of --sim, --connect, --replay (checked by RunTrack).
+struct TrackSource {
+  std::optional<live::PipelineClock> clock;  // --sim
+  std::optional<live::SimScene> scene;       // --sim
+  std::unique_ptr<link::StateSubscriber> state;
+  std::unique_ptr<live::TrackerSource> source;
+  live::IgtlSource* igtl = nullptr;  // --connect
+};
+
+// Fills `s` in place: the scanner holds references to its clock and scene.
+void OpenTrackSource(const TrackArgs& a, link::Participant* participant, TrackSource& s) {
+  auto log = [](const std::string& line) { std::fprintf(stderr, "track: %s\n", line.c_str()); };
+  if (!a.replay.empty()) {
+    s.source = std::make_unique<live::ReplaySource>(a.replay, log);
+  } else if (a.sim) {
+    s.clock.emplace(0.2);
+    s.scene.emplace(
+        live::SimSceneOptions{a.rate_hz, a.heart_rate_bpm, a.target_p2p_mm, 8.0, a.seed});
+    // The servo's tip moves the catheter in the scene.
+    const double offset = s.clock->link_offset_s();
+    live::SimScene* scene = &*s.scene;
+    s.state = std::make_unique<link::StateSubscriber>(
+        *participant, link::ValidationLimits{},
+        [scene, offset](const link::CatheterStateSample& st, double) {
+          scene->SetPlantTip(st.stamp_s - offset, st.tip_estimate_mm);
+        });
+    s.source = std::make_unique<live::SimScannerSource>(
+        *s.scene, *s.clock,
+        live::DelayedScannerOptions{a.rate_hz, a.delay_min_s, a.delay_max_s, a.duration_s, a.seed});
+  } else {
+    live::IgtlSourceOptions io;
+    io.address = a.connect;
+    io.duration_s = a.duration_s;
+    io.connect_timeout_s = a.connect_timeout_s;
+    io.reconnect_initial_s = kReconnectInitialS;
+    io.reconnect_max_s = kReconnectMaxS;
+    io.where = "track --connect " + a.connect;
+    io.log = [](const std::string& line) { std::fprintf(stderr, "%s\n", line.c_str()); };
+    auto igtl = std::make_unique<live::IgtlSource>(io);
+    s.igtl = igtl.get();
+    s.source = std::move(igtl);
+  }
+}
+
+// --connect: the OpenIGTLink client's counts, each rejection reason on stderr.
+nlohmann::json IngestJson(const live::IgtlSource& source) {
+  const imaging::openigtlink::IngestStats is = source.ingest_stats();
+  for (const auto& [reason, n] : is.rejected_by_reason)
+    std::fprintf(stderr, "track: ingest rejected %lld message(s): %s\n", static_cast<long long>(n),
+                 reason.c_str());
+  return {{"frames", is.frames},
+          {"connections", is.connections},
+          {"connect_failures", is.connect_failures},
+          {"last_connect_error", is.last_connect_error},
+          {"rejected", is.rejected},
+          {"rejected_by_reason", is.rejected_by_reason}};
+}
+
+// run.json of the run: the replayed recording's calibration and clock, or this run's.
+formats::RunInfo TrackRunInfo(const TrackArgs& a, const live::PipelineSettings& settings) {
+  formats::RunInfo info;
+  if (!a.replay.empty()) {
+    info = ReplayInfo(a.replay);
+  } else {
+    info.heart_rate_hz = a.sim ? std::optional<double>(a.heart_rate_bpm / 60.0) : std::nullopt;
+    // The clock of the run's times (docs/report.md#the-run-directory): --sim's pipeline
+    // clock (s since the run's start), or --connect's system clock (s since the Unix epoch:
+    // the scanner's stamps on a shared clock, else the arrival times).
+    info.meta.source = a.sim ? "echoservo track --sim" : "echoservo track --connect";
+    info.meta.time_base = a.sim ? formats::RunTimeBase::kPipeline : formats::RunTimeBase::kUnix;
+    if (a.sim) info.meta.seed = a.seed;
+  }
+  info.meta.settings = live::AllValues(settings);  // every parameter by name
+  return info;
+}
+
+void PrintTrackSummary(const TrackArgs& a, const live::TrackerRuntime& runtime,
+                       const live::TrackerRunResult& r, const nlohmann::json& ingest,
+                       const nlohmann::json& em_stream, const nlohmann::json& igtl_serve) {
+  const live::TrackerNode& node = runtime.node();
+  const live::TrackerStats& s = r.stats;
+  if (!a.json) {
+    std::printf(
+        "track: %llu volumes, %llu with catheter and target, %llu published, %llu errors; EKF %d "
+        "harmonics at %.3f Hz\n",
+        static_cast<unsigned long long>(s.volumes), static_cast<unsigned long long>(s.measured),
+        static_cast<unsigned long long>(s.published), static_cast<unsigned long long>(s.errors),
+        node.ekf().harmonics(), node.ekf().rate_hz());
+    std::printf("track: %s\n", node.heartbeat().reason.c_str());
+    return;
+  }
+  std::cout << nlohmann::json{{"volumes", s.volumes},
+                              {"measured", s.measured},
+                              {"not_found", s.not_found},
+                              {"errors", s.errors},
+                              {"published", s.published},
+                              {"publish_failures", s.publish_failures},
+                              {"volumes_recorded", r.recorder.written},
+                              {"volumes_record_dropped", r.recorder.dropped},
+                              {"dropped", r.source.dropped + r.source.skipped},
+                              {"missed_acquisitions", r.source.missed},
+                              {"ingest", ingest},
+                              {"em_stream", em_stream},
+                              {"igtl_serve", igtl_serve},
+                              {"ekf_harmonics", node.ekf().harmonics()},
+                              {"ekf_rate_hz", node.ekf().rate_hz()},
+                              {"heartbeat", HeartbeatJson(node)},
+                              {"run_dir",
+                               a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}}
+                   .dump(2)
+            << "\n";
+}
+
 void RunTrack(const TrackArgs& a) {
   const int sources = (a.sim ? 1 : 0) + (a.connect.empty() ? 0 : 1) + (a.replay.empty() ? 0 : 1);
   if (sources != 1)
@@ -138,71 +250,26 @@ void RunTrack(const TrackArgs& a) {
     throw std::invalid_argument("track --em-connect: a replay is offline (use its RUN's em.csv)");
   EmConnection em(a.em, "track");
   // --igtl-serve: each processed volume to the OpenIGTLink viewers (docs/slicer.md), stamped
-  // with its acquisition time: --sim converts the pipeline clock with its offset to the system
-  // clock (measured once at the start), --connect passes the scanner's stamp, --replay the
-  // recording's.
+  // with its acquisition time on the system clock.
   IgtlServe igtl(a.igtl, "track");
-
-  live::TrackerNodeOptions to;
-  to.ekf.harmonics = a.harmonics;
-  to.ekf.max_harmonics = a.max_harmonics;
-  to.ekf.init_window_s = a.init_window_s;
-  to.follow_static_target = a.follow_static_target;
-  // --set (live/pipeline_parameters.h) over the flags: every stage's parameter is accepted
-  // (and recorded in run.json), the follower's and the servo's with a warning (no servo here).
+  // The flags, then --set (live/pipeline_parameters.h) for the stages `track` runs.
   live::PipelineSettings settings = live::DefaultSettings();
-  settings.tracker = to;
-  {
-    const std::vector<live::Assignment> sets = a.set.Parsed();
-    for (const live::Assignment& s : sets) {
-      const std::string& stage = live::RequireParameter(s.first).stage;
-      if (stage == "follower" || stage == "servo")
-        std::fprintf(stderr,
-                     "track: --set %s: the %s does not run in `track` (recorded in run.json "
-                     "only; `demo` and `tune` run it)\n",
-                     live::FormatAssignment(s).c_str(), stage.c_str());
-    }
-    try {
-      live::Apply(sets, settings);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("track --set: ") + e.what());
-    }
-    to = settings.tracker;
-  }
+  settings.tracker.ekf.harmonics = a.harmonics;
+  settings.tracker.ekf.max_harmonics = a.max_harmonics;
+  settings.tracker.ekf.init_window_s = a.init_window_s;
+  settings.tracker.follow_static_target = a.follow_static_target;
+  live::ApplyFor("track", live::kTrackerStages, a.set.Parsed(), settings);
   // A run that fails leaves no half-written RUN behind, so the same command can be retried.
   formats::RunDirGuard run_guard(a.out);
   std::unique_ptr<formats::RunWriter> writer;
-  if (!a.out.empty()) {
-    formats::RunInfo info;
-    if (replay) {
-      info = ReplayInfo(a.replay);
-    } else {
-      info.heart_rate_hz = a.sim ? std::optional<double>(a.heart_rate_bpm / 60.0) : std::nullopt;
-      // The clock of the run's times (docs/report.md#the-run-directory): --sim's pipeline
-      // clock (s since the run's start), or --connect's system clock (s since the Unix epoch:
-      // the scanner's stamps on a shared clock, else the arrival times).
-      info.meta.source = a.sim ? "echoservo track --sim" : "echoservo track --connect";
-      info.meta.time_base = a.sim ? formats::RunTimeBase::kPipeline : formats::RunTimeBase::kUnix;
-      if (a.sim) info.meta.seed = a.seed;
-    }
-    // The settings used, every parameter by name (`echoservo tune params`).
-    info.meta.settings = live::AllValues(settings);
-    writer = std::make_unique<formats::RunWriter>(a.out, info);
-  }
+  if (!a.out.empty())
+    writer = std::make_unique<formats::RunWriter>(a.out, TrackRunInfo(a, settings));
   // The EM stream writes to `writer`: stopped before the writer goes, however this is left.
   struct StopEm {
     EmConnection& em;
     ~StopEm() { em.Stop(); }
   } stop_em{em};
   em.Start(writer.get());
-  // The received volumes, on the recorder's thread: the tracker never waits for the disk.
-  std::unique_ptr<imaging::AsyncSequenceWriter> recorder;
-  if (a.save_volumes)
-    recorder = std::make_unique<imaging::AsyncSequenceWriter>(fs::path(a.out) / "volumes.igs.mhd",
-                                                              kRecordQueueVolumes);
-  auto record = [&recorder](imaging::Volume&& v) {
-    if (recorder) recorder->Submit(std::move(v));
-  };
   std::unique_ptr<link::Participant> participant;
   std::unique_ptr<link::TargetPublisher> publisher;
   if (!replay) {
@@ -210,200 +277,31 @@ void RunTrack(const TrackArgs& a) {
         ToParticipantOptions(a.link, "echoservo_tracker", "tracker"));
     publisher = std::make_unique<link::TargetPublisher>(*participant);
   }
+  TrackSource src;
+  OpenTrackSource(a, participant.get(), src);
   InstallStopSignals();
-  auto report_error = [&](const live::TrackedVolume& r) {
-    if (!r.error.empty()) std::fprintf(stderr, "track: volume skipped: %s\n", r.error.c_str());
+  live::TrackerRuntimeOptions ro;
+  ro.node = settings.tracker;
+  ro.node.link_offset_s = src.source->unix_offset_s();
+  ro.publisher = publisher.get();
+  ro.writer = writer.get();
+  if (a.save_volumes) ro.record_to = fs::path(a.out) / "volumes.igs.mhd";
+  ro.record_queue_volumes = kRecordQueueVolumes;
+  ro.log = [](const std::string& line) { std::fprintf(stderr, "track: %s\n", line.c_str()); };
+  ro.stop = [] { return StopRequested(); };
+  const double unix_offset_s = src.source->unix_offset_s();
+  ro.on_tracked = [&igtl, unix_offset_s](const live::TrackedVolume& r, const live::SourceVolume& v,
+                                         double) {
+    igtl.OnTracked(r, v.volume, v.stamp_s + unix_offset_s);
   };
-  std::uint64_t missed = 0, dropped = 0;
-  nlohmann::json ingest = nullptr;  // --connect: the OpenIGTLink client's counts
-  std::optional<live::TrackerNode> node;
-  std::string failure;  // --connect without a single volume: the exit status is 1
-
-  if (replay) {
-    node.emplace(to, nullptr, writer.get());
-    std::unique_ptr<imaging::VolumeSource> source = imaging::OpenRecording(a.replay);
-    double last = -1e300;
-    while (!StopRequested()) {
-      std::optional<imaging::SourceFrame> f = source->Next();
-      if (!f) break;
-      const double t = f->volume.timestamp_s();
-      if (!(t > last)) {  // the EKF needs increasing acquisition times
-        std::fprintf(stderr, "track: %s frame %lld: timestamp %.6f s does not increase; skipped\n",
-                     a.replay.c_str(), static_cast<long long>(f->volume.frame_index()), t);
-        ++dropped;
-        continue;
-      }
-      last = t;
-      const live::TrackedVolume r = node->Process(f->volume, t, t, [t] { return t; });
-      report_error(r);
-      igtl.OnTracked(r, f->volume, t);
-    }
-  } else if (a.sim) {
-    const live::PipelineClock clock(0.2);
-    to.link_offset_s = clock.link_offset_s();
-    node.emplace(to, publisher.get(), writer.get());
-    live::SimScene scene({a.rate_hz, a.heart_rate_bpm, a.target_p2p_mm, 8.0, a.seed});
-    // The servo's tip moves the catheter in the scene.
-    const double offset = clock.link_offset_s();
-    link::StateSubscriber state(*participant, {},
-                                [&scene, offset](const link::CatheterStateSample& s, double) {
-                                  scene.SetPlantTip(s.stamp_s - offset, s.tip_estimate_mm);
-                                });
-    live::DelayedScanner scanner(scene, clock,
-                                 {a.rate_hz, a.delay_min_s, a.delay_max_s, a.duration_s, a.seed});
-    while (!StopRequested()) {
-      std::optional<live::Delivery> d = scanner.Next(0.05);
-      if (!d) {
-        if (scanner.finished()) break;
-        continue;
-      }
-      const double arrived = clock.Now();
-      const live::TrackedVolume r =
-          node->Process(d->volume, d->acquired_s, arrived, [&clock] { return clock.Now(); });
-      report_error(r);
-      igtl.OnTracked(r, d->volume, d->acquired_s + clock.link_offset_s());
-      record(std::move(d->volume));
-    }
-    scanner.Stop();
-    missed = scanner.missed();
-    dropped = scanner.dropped();
-  } else {
-    node.emplace(to, publisher.get(), writer.get());
-    const auto colon = a.connect.rfind(':');
-    if (colon == std::string::npos)
-      throw std::invalid_argument("track --connect: expected HOST:PORT, got '" + a.connect + "'");
-    imaging::openigtlink::IngestOptions io;
-    io.host = a.connect.substr(0, colon);
-    try {
-      io.port = std::stoi(a.connect.substr(colon + 1));
-    } catch (const std::exception&) {
-      throw std::invalid_argument("track --connect: bad port in '" + a.connect + "'");
-    }
-    io.queue_capacity = 2;
-    io.reconnect_initial_s = kReconnectInitialS;
-    io.reconnect_max_s = kReconnectMaxS;
-    const std::string where = "track --connect " + a.connect;
-    io.on_event = [where](const imaging::openigtlink::ConnectionEvent& e) {
-      using Kind = imaging::openigtlink::ConnectionEvent::Kind;
-      switch (e.kind) {
-        case Kind::kConnectFailed:
-          std::fprintf(stderr, "%s: %s; retrying in %.2g s (attempt %d)\n", where.c_str(),
-                       e.error.c_str(), e.retry_in_s, e.attempt + 1);
-          break;
-        case Kind::kConnected:
-          std::fprintf(stderr, "%s: connected (attempt %d)\n", where.c_str(), e.attempt);
-          break;
-        case Kind::kDisconnected:
-          std::fprintf(stderr,
-                       "%s: the scanner's connection ended after %lld volume(s): %s; "
-                       "reconnecting in %.2g s\n",
-                       where.c_str(), static_cast<long long>(e.frames), e.error.c_str(),
-                       e.retry_in_s);
-          break;
-        case Kind::kGaveUp:
-          break;
-      }
-    };
-    imaging::openigtlink::IngestClient client(io);
-    client.Start();
-    const double start = link::NowS();
-    std::uint64_t received = 0;
-    bool gave_up = false;
-    while (!StopRequested() && (a.duration_s <= 0 || link::NowS() - start < a.duration_s) &&
-           !client.ended()) {
-      if (received == 0 && a.connect_timeout_s > 0 && link::NowS() - start >= a.connect_timeout_s) {
-        gave_up = true;
-        break;
-      }
-      std::optional<imaging::openigtlink::IngestedFrame> f = client.NextFrame(0.1);
-      if (!f) continue;
-      ++received;
-      const double acquired = f->latency_ms ? f->frame.volume.timestamp_s() : f->arrival_s;
-      const live::TrackedVolume r =
-          node->Process(f->frame.volume, acquired, f->arrival_s, [] { return link::NowS(); });
-      report_error(r);
-      igtl.OnTracked(r, f->frame.volume, acquired);
-      record(std::move(f->frame.volume));
-    }
-    client.Stop();
-    const imaging::openigtlink::IngestStats is = client.stats();
-    dropped = static_cast<std::uint64_t>(is.dropped);
-    ingest = {{"frames", is.frames},
-              {"connections", is.connections},
-              {"connect_failures", is.connect_failures},
-              {"last_connect_error", is.last_connect_error},
-              {"rejected", is.rejected},
-              {"rejected_by_reason", is.rejected_by_reason}};
-    for (const auto& [reason, n] : is.rejected_by_reason)
-      std::fprintf(stderr, "track: ingest rejected %lld message(s): %s\n",
-                   static_cast<long long>(n), reason.c_str());
-    if (received == 0) {
-      char when[96];
-      if (gave_up)
-        std::snprintf(when, sizeof when, "within --connect-timeout %g s", a.connect_timeout_s);
-      else if (StopRequested())
-        std::snprintf(when, sizeof when, "before it was stopped");
-      else
-        std::snprintf(when, sizeof when, "in --duration %g s", a.duration_s);
-      std::string why;
-      if (is.connections == 0)
-        why = std::to_string(is.connect_failures) + " connection attempt(s), the last: " +
-              (is.last_connect_error.empty() ? "no answer" : is.last_connect_error);
-      else
-        why = "connected " + std::to_string(is.connections) +
-              " time(s), but no IMAGE message was accepted (" + std::to_string(is.rejected) +
-              " rejected, " + std::to_string(is.skipped) + " of other types)";
-      failure = where + ": no volume received " + when + " (" + why + ")" +
-                (gave_up ? "; giving up" : "");
-    }
-  }
+  live::TrackerRuntime runtime(ro);
+  const live::TrackerRunResult result = runtime.Run(*src.source);
+  const nlohmann::json ingest = src.igtl ? IngestJson(*src.igtl) : nlohmann::json(nullptr);
+  const std::string failure = src.igtl ? src.igtl->failure() : "";
   const nlohmann::json em_stream = nlohmann::json::parse(em.Finish(a.out));
   const nlohmann::json igtl_serve = nlohmann::json::parse(igtl.Finish());
   if (writer) writer->Flush();
-  imaging::AsyncRecorderStats rs;
-  if (recorder) {  // what is queued is written, then synced
-    recorder->Close();
-    rs = recorder->stats();
-    formats::ReplaceFileContents(fs::path(a.out) / "volumes.json", recorder->SummaryJson());
-    if (!rs.error.empty())
-      std::fprintf(stderr, "track: volume recording stopped: %s\n", rs.error.c_str());
-    if (rs.dropped > 0)
-      std::fprintf(stderr, "track: volume recording: %llu of %llu volumes dropped (queue full)\n",
-                   static_cast<unsigned long long>(rs.dropped),
-                   static_cast<unsigned long long>(rs.submitted));
-  }
-
-  const live::TrackerStats& s = node->stats();
-  if (a.json) {
-    std::cout << nlohmann::json{{"volumes", s.volumes},
-                                {"measured", s.measured},
-                                {"not_found", s.not_found},
-                                {"errors", s.errors},
-                                {"published", s.published},
-                                {"publish_failures", s.publish_failures},
-                                {"volumes_recorded", rs.written},
-                                {"volumes_record_dropped", rs.dropped},
-                                {"dropped", dropped},
-                                {"missed_acquisitions", missed},
-                                {"ingest", ingest},
-                                {"em_stream", em_stream},
-                                {"igtl_serve", igtl_serve},
-                                {"ekf_harmonics", node->ekf().harmonics()},
-                                {"ekf_rate_hz", node->ekf().rate_hz()},
-                                {"heartbeat", HeartbeatJson(*node)},
-                                {"run_dir",
-                                 a.out.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.out)}}
-                     .dump(2)
-              << "\n";
-  } else {
-    std::printf(
-        "track: %llu volumes, %llu with catheter and target, %llu published, %llu errors; EKF %d "
-        "harmonics at %.3f Hz\n",
-        static_cast<unsigned long long>(s.volumes), static_cast<unsigned long long>(s.measured),
-        static_cast<unsigned long long>(s.published), static_cast<unsigned long long>(s.errors),
-        node->ekf().harmonics(), node->ekf().rate_hz());
-    std::printf("track: %s\n", node->heartbeat().reason.c_str());
-  }
+  PrintTrackSummary(a, runtime, result, ingest, em_stream, igtl_serve);
   if (!failure.empty()) throw std::runtime_error(failure);
   run_guard.Keep();
 }

@@ -11,10 +11,12 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "formats/run_dir_guard.h"
 #include "formats/run_record.h"
 #include "tests/test_util/cli_runner.h"
+#include "tests/test_util/sanitizers.h"
 #include "tests/test_util/temp_dir.h"
 
 namespace echoservo {
@@ -24,6 +26,35 @@ namespace fs = std::filesystem;
 using testing::ReadFile;
 using testing::RunCli;
 using testing::ShellQuote;
+
+// The demo's printed tip-to-target RMS and `report RUN`'s default figure are one figure: both
+// score the window report/scored_window.h defines (following + two beats), print it, and agree
+// within 0.02 mm (the report aligns the EM log itself: its clock offset and EM→image fit move the
+// figure by a few µm). A short run at contact and a longer one at the default standoff.
+TEST(DemoCli, DemoAndReportScoreTheSameWindowAndAgree) {
+  ECHOSERVO_RELEASE_SUITE_ONLY("two real-time demos of 8 and 13 s");
+  const testing::TempDir dir("demo_agree", true);
+  for (const auto& [duration_s, standoff] : {std::pair{8, "0"}, std::pair{13, "8"}}) {
+    const fs::path run = dir.path() / ("run" + std::to_string(duration_s));
+    const auto r = RunCli("demo --duration " + std::to_string(duration_s) + " --standoff " +
+                          standoff + " --json --out " + ShellQuote(run.string()));
+    ASSERT_EQ(r.rc, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    const auto rep = RunCli("report " + ShellQuote(run.string()) + " --json --out " +
+                            ShellQuote((dir.path() / "report.html").string()));
+    ASSERT_EQ(rep.rc, 0) << rep.err;
+    const auto rj = nlohmann::json::parse(rep.out);
+    ASSERT_TRUE(j["scored_window"]["from_s"].is_number()) << r.out;
+    EXPECT_DOUBLE_EQ(rj["window"]["from_s"].get<double>(),
+                     j["scored_window"]["from_s"].get<double>());
+    EXPECT_EQ(rj["window"]["reason"], j["scored_window"]["reason"]);
+    EXPECT_EQ(j["scored_window"]["reason"].get<std::string>().rfind("servo began following at ", 0),
+              0u);
+    EXPECT_NEAR(rj["tip_to_target_rms_mm"].get<double>(), j["tip_to_target_rms_mm"].get<double>(),
+                0.02)
+        << duration_s << " s, standoff " << standoff;
+  }
+}
 
 TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
   const testing::TempDir dir("demo_cli", true);

@@ -286,7 +286,7 @@ TEST(TuneTrial, BadInputIsNamed) {
                  "/nonexistent/rec.igs.mha");
   r.recording = std::string(ECHOSERVO_DATA_DIR) +
                 "/plus/WaterTankBottomTranslationTrackerBuffer-trimmed.igs.mha";
-  ExpectContains(InvalidArgumentMessage([&] { RunTrial(r); }), "no image frames");
+  ExpectContains(InvalidArgumentMessage([&] { RunTrial(r); }), "tracker-only sequence (no images)");
   r.recording = std::string(ECHOSERVO_DATA_DIR) + "/plus/SpinePhantomFreehandReconstructed.mha";
   ExpectContains(InvalidArgumentMessage([&] { RunTrial(r); }), "not a PLUS sequence");
   r.recording = std::string(ECHOSERVO_DATA_DIR) + "/plus/SpinePhantomFreehand.igs.mha";
