@@ -13,8 +13,8 @@ void FrictionFeedforward::Validate() const {
                                   "' must be finite and >= 0");
     }
   };
-  check(coulomb_n, "coulomb_n");
-  check(viscous_n_per_mm_s, "viscous_n_per_mm_s");
+  params::kCoulombFfN.Check(coulomb_n, "friction feed-forward");
+  params::kViscousFfNPerMmS.Check(viscous_n_per_mm_s, "friction feed-forward");
   check(moving_mass_kg, "moving_mass_kg");
   if (!(std::isfinite(sign_smoothing_mm_s) && sign_smoothing_mm_s > 0.0)) {
     throw std::invalid_argument("friction feed-forward: 'sign_smoothing_mm_s' must be > 0");

@@ -6,11 +6,30 @@
 // the slide's moving mass; v_ε smooths the Coulomb sign change through zero speed.
 #pragma once
 
+#include "formats/parameter_spec.h"
+
 namespace echoservo::control {
 
+// The feed-forward's tunable terms (formats/parameter_spec.h): declared once, read by
+// Validate and by the pipeline's registry (stage "servo"; calibration measures them).
+namespace params {
+inline constexpr formats::ParameterSpec kCoulombFfN{
+    "servo.coulomb_ff_n",
+    "N",
+    formats::ParameterKind::kReal,
+    0,
+    5,
+    0.0,
+    "friction feed-forward: Coulomb term (calibration measures it; the simulated catheter's "
+    "nominal friction)"};
+inline constexpr formats::ParameterSpec kViscousFfNPerMmS{
+    "servo.viscous_ff_n_per_mm_s",        "N/(mm/s)", formats::ParameterKind::kReal, 0, 0.1, 0.0,
+    "friction feed-forward: viscous term"};
+}  // namespace params
+
 struct FrictionFeedforward {
-  double coulomb_n = 0.0;
-  double viscous_n_per_mm_s = 0.0;
+  double coulomb_n = params::kCoulombFfN.default_value;
+  double viscous_n_per_mm_s = params::kViscousFfNPerMmS.default_value;
   double moving_mass_kg = 0.0;
   double sign_smoothing_mm_s = 2.0;
   // Throws std::invalid_argument naming the field for negative or non-finite values.

@@ -15,9 +15,9 @@ void PidGains::Validate() const {
                                   (strictly_positive ? "> 0" : ">= 0"));
     }
   };
-  check(kp_n_per_mm, "kp_n_per_mm", false);
-  check(ki_n_per_mm_s, "ki_n_per_mm_s", false);
-  check(kd_n_per_mm_per_s, "kd_n_per_mm_per_s", false);
+  params::kKpNPerMm.Check(kp_n_per_mm, "PID gains");
+  params::kKiNPerMmS.Check(ki_n_per_mm_s, "PID gains");
+  params::kKdNPerMmPerS.Check(kd_n_per_mm_per_s, "PID gains");
   check(derivative_cutoff_hz, "derivative_cutoff_hz", true);
   check(output_limit_n, "output_limit_n", true);
 }

@@ -24,8 +24,8 @@ void FollowerConfig::Validate() const {
   auto bad = [](const std::string& f, const std::string& why) {
     throw std::invalid_argument("FollowerConfig: " + f + " " + why);
   };
-  if (!(standoff_mm >= 0 && standoff_mm <= 30)) bad("standoff_mm", "must be in [0, 30] mm");
-  if (!(stale_after_s > 0 && stale_after_s <= 5)) bad("stale_after_s", "must be in (0, 5] s");
+  params::kStandoffMm.Check(standoff_mm, "FollowerConfig");
+  params::kStaleAfterS.Check(stale_after_s, "FollowerConfig");
   if (!(retract_after_s >= 0 && retract_after_s <= 30))
     bad("retract_after_s", "must be in [0, 30] s");
   if (!(retract_mm >= 0 && retract_mm <= 50)) bad("retract_mm", "must be in [0, 50] mm");
@@ -34,8 +34,8 @@ void FollowerConfig::Validate() const {
   if (!(std::isfinite(travel_min_mm) && std::isfinite(travel_max_mm) &&
         travel_min_mm < travel_max_mm))
     bad("travel_min_mm/travel_max_mm", "must be finite with min < max");
-  if (!(offset_gain > 0 && offset_gain <= 1)) bad("offset_gain", "must be in (0, 1]");
-  if (!(min_confidence >= 0 && min_confidence <= 1)) bad("min_confidence", "must be in [0, 1]");
+  params::kOffsetGain.Check(offset_gain, "FollowerConfig");
+  params::kMinConfidence.Check(min_confidence, "FollowerConfig");
   if (!(max_future_s >= 0 && max_future_s <= 1)) bad("max_future_s", "must be in [0, 1] s");
   if (!(scale_gain > 0 && scale_gain <= 1)) bad("scale_gain", "must be in (0, 1]");
   if (!(scale_prior_sd > 0 && scale_prior_sd <= 1)) bad("scale_prior_sd", "must be in (0, 1]");

@@ -30,6 +30,7 @@
 #include "control/fault_bits.h"
 #include "control/trajectory.h"
 #include "estimation/fourier_motion.h"
+#include "formats/parameter_spec.h"
 
 namespace echoservo::control {
 
@@ -42,21 +43,73 @@ struct TargetEstimateInput {
   double confidence = 0.0;                  // detector confidence, [0, 1]
 };
 
+// The follower's tunable parameters (formats/parameter_spec.h): declared once, read by the
+// defaults below, by Validate and by the pipeline's registry (live/pipeline_parameters.h,
+// stage "follower"; the live pipeline's own standoff and scale fit: live::PipelineSettings).
+namespace params {
+inline constexpr formats::ParameterSpec kStandoffMm{
+    "follower.standoff_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    0,
+    30,
+    3.0,
+    "the tip is held this far short of the target along the axis (0: contact)"};
+inline constexpr formats::ParameterSpec kStaleAfterS{
+    "follower.stale_after_s",
+    "s",
+    formats::ParameterKind::kReal,
+    0.02,
+    5,
+    0.25,
+    "no fresh estimate for this long: hold (then retract); >= one volume interval at 60 vol/s"};
+inline constexpr formats::ParameterSpec kOffsetGain{
+    "follower.offset_gain",
+    "1",
+    formats::ParameterKind::kReal,
+    1e-3,
+    1,
+    0.2,
+    "low-pass gain per volume of the image-to-catheter offset (1: the newest volume's alone)"};
+inline constexpr formats::ParameterSpec kEstimateScale{
+    "follower.estimate_scale",
+    "1",
+    formats::ParameterKind::kBool,
+    0,
+    1,
+    0,
+    "1: fit the image/catheter scale online (a sound speed other than the scanner's makes "
+    "image mm differ from catheter mm); 0: scale 1"};
+inline constexpr formats::ParameterSpec kMinConfidence{
+    "follower.min_confidence",
+    "1",
+    formats::ParameterKind::kReal,
+    0,
+    1,
+    0.5,
+    "the servo ignores estimates below this confidence (counted)"};
+}  // namespace params
+
 struct FollowerConfig {
-  double standoff_mm = 3.0;      // tip held this far short of the target, [0, 30]
-  double stale_after_s = 0.25;   // no fresh estimate for this long: hold
-  double retract_after_s = 0.5;  // holding this long: retract
-  double retract_mm = 5.0;       // retraction distance
+  double standoff_mm =
+      params::kStandoffMm.default_value;  // tip held this far short of the target, [0, 30]
+  double stale_after_s =
+      params::kStaleAfterS.default_value;  // no fresh estimate for this long: hold
+  double retract_after_s = 0.5;            // holding this long: retract
+  double retract_mm = 5.0;                 // retraction distance
   double retract_speed_mm_s = 20.0;
   double travel_min_mm = -15.0;  // reference clamp (catheter coordinates)
   double travel_max_mm = 15.0;
-  double offset_gain = 0.2;      // low-pass gain of the image↔catheter offset per volume
-  bool estimate_scale = false;   // fit the image/catheter scale k (see above); false: k = 1
+  double offset_gain =
+      params::kOffsetGain.default_value;  // low-pass gain of the image↔catheter offset per volume
+  bool estimate_scale = params::kEstimateScale.default_value !=
+                        0.0;     // fit the image/catheter scale k (see above); false: k = 1
   double scale_gain = 0.01;      // the scale fit's weight of each new volume, (0, 1]
   double scale_prior_sd = 0.05;  // prior k = 1 ± this, (0, 1]
   double tip_noise_mm = 0.2;     // the detected tip's noise σ (weighs the prior), (0, 10]
-  double min_confidence = 0.5;   // estimates below are ignored (counted)
-  double max_future_s = 0.05;    // acquisition/publication this far ahead of now: rejected
+  double min_confidence =
+      params::kMinConfidence.default_value;  // estimates below are ignored (counted)
+  double max_future_s = 0.05;  // acquisition/publication this far ahead of now: rejected
   // The image↔catheter offset stays within ± this of its first measurement, (0, 100] mm.
   double max_offset_change_mm = 5.0;
   // Response check (docs/control.md#the-image-response-check).

@@ -31,6 +31,17 @@ bool Positive(double v) { return std::isfinite(v) && v > 0.0; }
 }  // namespace
 
 HeartbeatEkf::HeartbeatEkf(HeartbeatEkfOptions options) : o_(options) {
+  // The tunable parameters' bounds (params above), then what only combinations say.
+  constexpr std::string_view kOwner = "heartbeat EKF";
+  params::kHarmonics.Check(o_.harmonics, kOwner);
+  params::kMaxHarmonics.Check(o_.max_harmonics, kOwner);
+  params::kInitWindowS.Check(o_.init_window_s, kOwner);
+  params::kNoiseMm.Check(o_.noise_mm, kOwner);
+  params::kCoefficientQMm.Check(o_.coefficient_q_mm, kOwner);
+  params::kOffsetQMm.Check(o_.offset_q_mm, kOwner);
+  params::kRateQRadS.Check(o_.rate_q_rad_s, kOwner);
+  params::kPhaseQRad.Check(o_.phase_q_rad, kOwner);
+  params::kGateSigma.Check(o_.gate_sigma, kOwner);
   const bool ok =
       o_.harmonics >= 0 && o_.harmonics <= kMaxHarmonics && o_.max_harmonics >= 1 &&
       o_.max_harmonics <= kMaxHarmonics && Positive(o_.min_rate_hz) &&

@@ -26,6 +26,7 @@
 #include "estimation/fourier_motion.h"
 #include "estimation/motion_predictor.h"
 #include "estimation/slow_trend.h"
+#include "formats/parameter_spec.h"
 
 namespace echoservo::estimation {
 
@@ -33,23 +34,106 @@ namespace echoservo::estimation {
 // from the window's slow trend, and switched on later when the trend appears), or forced.
 enum class Respiration { kAuto, kOff, kOn };
 
+// The EKF's tunable parameters (formats/parameter_spec.h): declared once, read by the
+// defaults below, by the constructor's validation and by the pipeline's registry
+// (live/pipeline_parameters.h, stage "predictor"; the live tracker's own defaults for the
+// harmonics and the window: live::TrackerNodeOptions::DefaultEkfOptions).
+namespace params {
+inline constexpr formats::ParameterSpec kHarmonics{
+    "predictor.harmonics",
+    "1",
+    formats::ParameterKind::kInteger,
+    0,
+    12,
+    0,
+    "EKF harmonics of the heartbeat's shape; 0: chosen at initialisation (cross-validated) up "
+    "to predictor.max_harmonics"};
+inline constexpr formats::ParameterSpec kMaxHarmonics{
+    "predictor.max_harmonics",
+    "1",
+    formats::ParameterKind::kInteger,
+    1,
+    12,
+    8,
+    "the automatic harmonic choice's upper end (used when predictor.harmonics is 0)"};
+inline constexpr formats::ParameterSpec kInitWindowS{
+    "predictor.init_window_s",
+    "s",
+    formats::ParameterKind::kReal,
+    1.7,
+    30,
+    4.0,
+    "EKF initial (and re-acquisition) window; >= one beat at its lowest rate (0.6 Hz: 1.67 s)"};
+inline constexpr formats::ParameterSpec kNoiseMm{
+    "predictor.noise_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    0,
+    5,
+    0.0,
+    "EKF measurement sigma; 0: the initial fit's residual (floored at 0.02 mm)"};
+inline constexpr formats::ParameterSpec kCoefficientQMm{
+    "predictor.coefficient_q_mm",
+    "mm/sqrt(s)",
+    formats::ParameterKind::kReal,
+    1e-4,
+    1,
+    0.02,
+    "EKF random walk of the Fourier coefficients (the beat's shape changing)"};
+inline constexpr formats::ParameterSpec kOffsetQMm{
+    "predictor.offset_q_mm",
+    "mm/sqrt(s)",
+    formats::ParameterKind::kReal,
+    1e-3,
+    5,
+    0.1,
+    "EKF random walk of the motion's offset (drift, slow respiration)"};
+inline constexpr formats::ParameterSpec kRateQRadS{
+    "predictor.rate_q_rad_s",
+    "rad/s/sqrt(s)",
+    formats::ParameterKind::kReal,
+    1e-3,
+    10,
+    0.6,
+    "EKF random walk of the heart rate (heart-rate variability)"};
+inline constexpr formats::ParameterSpec kPhaseQRad{"predictor.phase_q_rad",
+                                                   "rad/sqrt(s)",
+                                                   formats::ParameterKind::kReal,
+                                                   1e-4,
+                                                   1,
+                                                   0.02,
+                                                   "EKF random walk of the cardiac phase"};
+inline constexpr formats::ParameterSpec kGateSigma{
+    "predictor.gate_sigma",
+    "1",
+    formats::ParameterKind::kReal,
+    1,
+    20,
+    4.0,
+    "EKF outlier gate: measurements further than this many predicted sigma are rejected"};
+}  // namespace params
+
 struct HeartbeatEkfOptions {
-  int harmonics = 0;  // 0: automatic (cross-validated at initialisation) up to max_harmonics; ≤ 12
-  int max_harmonics = 8;
+  int harmonics = static_cast<int>(
+      params::kHarmonics.default_value);  // 0: automatic (cross-validated at initialisation) up to
+                                          // max_harmonics; ≤ 12
+  int max_harmonics = static_cast<int>(params::kMaxHarmonics.default_value);
   Respiration respiration = Respiration::kAuto;
   double min_rate_hz = 0.6;
   double max_rate_hz = 3.0;
-  double init_window_s = 4.0;
-  double noise_mm = 0.0;  // measurement σ; 0: the initial fit's residual (floored at 0.02 mm)
+  double init_window_s = params::kInitWindowS.default_value;
+  double noise_mm =
+      params::kNoiseMm
+          .default_value;  // measurement σ; 0: the initial fit's residual (floored at 0.02 mm)
   // Random-walk intensities (standard deviation growth per √s).
-  double coefficient_q_mm = 0.02;
-  double offset_q_mm = 0.1;
+  double coefficient_q_mm = params::kCoefficientQMm.default_value;
+  double offset_q_mm = params::kOffsetQMm.default_value;
   // With respiration; 0: from the window's cubic trend, ā·√(T/π) for an RMS trend
   // acceleration ā (mm/s²) over T seconds (floored at 0.3 mm/s/√s).
   double offset_rate_q_mm_s = 0.0;
-  double rate_q_rad_s = 0.6;  // heart-rate variability
-  double phase_q_rad = 0.02;
-  double gate_sigma = 4.0;
+  double rate_q_rad_s = params::kRateQRadS.default_value;  // heart-rate variability
+  double phase_q_rad = params::kPhaseQRad.default_value;
+  double gate_sigma = params::kGateSigma.default_value;
   int max_rejections = 5;
   double max_phase_sd_rad = 0.8;
   double horizon_s = 0.5;  // the exported model's validity past the newest measurement

@@ -125,8 +125,6 @@ PipelineSettings DemoSettings(const DemoOptions& o) {
   s.tracker.ekf.harmonics = o.harmonics;
   s.tracker.ekf.max_harmonics = std::max(s.tracker.ekf.max_harmonics, o.harmonics);
   s.follower.standoff_mm = o.standoff_mm;
-  s.follower.offset_gain = 0.05;
-  s.follower.estimate_scale = true;  // image mm = 1540/1482 catheter mm in the water tank
   s.servo = MakeSimCatheter(o.sheath_id_mm, o.guidewire_od_mm, o.seed).servo;
   if (!o.settings.empty()) {
     try {

@@ -25,6 +25,7 @@
 #include "control/deadline_watchdog.h"
 #include "control/realtime.h"
 #include "hw/fault_injection.h"
+#include "live/pipeline_parameters.h"
 
 namespace echoservo::formats {
 class RunWriter;
@@ -47,7 +48,7 @@ struct DemoOptions {
   double target_p2p_mm = 10.0;   // its peak-to-peak excursion, (0, 20]
   // [0, 30]; down to contact (0: the tip held at the tissue's surface; overshooting, it
   // indents the tissue: live/sim_scene.h).
-  double standoff_mm = 8.0;
+  double standoff_mm = LiveFollowerConfig().standoff_mm;  // the pipeline's (8 mm)
   // The figures' window from this pipeline time on; NaN (the default): the scored window
   // `echoservo report` uses too (report/scored_window.h: from when the servo follows plus
   // two heartbeats' settling).
@@ -66,7 +67,7 @@ struct DemoOptions {
   // The EKF's harmonic count, [1, 12] (TrackerNodeOptions::DefaultEkfOptions: 8, the mitral
   // shape's). It needs 2·(2·harmonics + 4) volumes before it publishes: 40 at 8, about 1.6 s
   // at 25 vol/s; fewer let a slow host (a sanitizer build) start following sooner.
-  int harmonics = 8;
+  int harmonics = TrackerNodeOptions::DefaultEkfOptions().harmonics;
   // Tunable parameters by name (`--set NAME=VALUE`, live/pipeline_parameters.h), applied in
   // order over what the options above give (DemoSettings): they override standoff_mm,
   // harmonics and zero_order_hold. RUN/run.json records every value used ("settings").
@@ -150,12 +151,9 @@ struct DemoResult {
   double ekf_rate_hz = 0.0;
 };
 
-struct PipelineSettings;  // live/pipeline_parameters.h
-
-// The pipeline's settings RunDemo runs with: the tracker node's defaults with `harmonics` and
-// `zero_order_hold`, the demo's follower (standoff_mm, an offset gain of 0.05, the image/
-// catheter scale estimated: image mm = 1540/1482 catheter mm in the water tank) and the
-// simulated catheter's servo (live/sim_catheter.h), then `settings`. Throws
+// The pipeline's settings RunDemo runs with: PipelineSettings{} (live/pipeline_parameters.h)
+// with `harmonics`, `zero_order_hold` and `standoff_mm`, the simulated catheter's servo for
+// the options' catheter and seed (live/sim_catheter.h), then `settings`. Throws
 // std::invalid_argument naming a bad --set.
 PipelineSettings DemoSettings(const DemoOptions& options);
 

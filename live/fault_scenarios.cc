@@ -78,7 +78,6 @@ FaultScenarioResult Run(const Scenario& sc) {
   hw::FaultInjectingHardware hardware(*catheter.plant, sc.hardware);
   ServoNodeOptions o;
   o.follower.standoff_mm = 8.0;
-  o.follower.offset_gain = 0.2;
   o.auto_enable = true;
   ServoNode node(hardware, catheter.servo, std::move(catheter.compensator), o, nullptr);
   const estimation::FourierMotion target = TargetMotion();

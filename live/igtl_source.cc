@@ -46,10 +46,10 @@ IgtlSource::IgtlSource(IgtlSourceOptions options) : o_(std::move(options)) {
         log(IgtlFmt("%s: connected (attempt %d)", where.c_str(), e.attempt));
         break;
       case Kind::kDisconnected:
-        log(IgtlFmt("%s: the scanner's connection ended after %lld volume(s): %s; reconnecting "
-                    "in %.2g s",
-                    where.c_str(), static_cast<long long>(e.frames), e.error.c_str(),
-                    e.retry_in_s));
+        log(IgtlFmt(
+            "%s: the scanner's connection ended after %lld volume(s): %s; reconnecting "
+            "in %.2g s",
+            where.c_str(), static_cast<long long>(e.frames), e.error.c_str(), e.retry_in_s));
         break;
       case Kind::kGaveUp:
         break;
@@ -86,8 +86,7 @@ std::optional<SourceVolume> IgtlSource::Next(double timeout_s) {
   std::optional<imaging::openigtlink::IngestedFrame> f = client_->NextFrame(timeout_s);
   if (!f) return std::nullopt;
   const double stamp_s = f->latency_ms ? f->frame.volume.timestamp_s() : f->arrival_s;
-  return SourceVolume{std::move(f->frame.volume), stamp_s, f->arrival_s, received_++,
-                      std::nullopt};
+  return SourceVolume{std::move(f->frame.volume), stamp_s, f->arrival_s, received_++, std::nullopt};
 }
 
 SourceCounts IgtlSource::counts() const {

@@ -24,11 +24,12 @@
 
 #include "control/servo_loop.h"
 #include "control/target_follower.h"
+#include "formats/parameter_spec.h"
 #include "live/tracker_node.h"
 
 namespace echoservo::live {
 
-enum class ParameterKind { kReal, kInteger, kBool };
+using ParameterKind = formats::ParameterKind;
 
 struct ParameterInfo {
   std::string name;  // dotted, e.g. "detector.sheath_diameter_mm"
@@ -42,17 +43,28 @@ struct ParameterInfo {
 
 // Everything a parameter can change: the tracker node's options (detector, target profile,
 // predictor), the servo's follower and its loop (gains; the re-simulated loop only).
+// The live pipeline's follower, declared here once: the module's defaults (control/
+// target_follower.h) with the water tank's standoff of 8 mm and the image/catheter scale
+// fitted online (image mm = 1540/1482 catheter mm in water at the scanner's 1540 m/s).
+control::FollowerConfig LiveFollowerConfig();
+
 struct PipelineSettings {
-  live::TrackerNodeOptions tracker;
-  control::FollowerConfig follower;
-  control::ServoConfig servo;
+  live::TrackerNodeOptions tracker;  // its defaults: the live tracker's (DefaultEkfOptions)
+  control::FollowerConfig follower = LiveFollowerConfig();
+  control::ServoConfig servo;  // DefaultSettings: the simulated catheter's calibrated servo
 };
 
-// The live pipeline's settings (what `track`, `demo` and a replay run without --set): the
-// tracker node's defaults (8 harmonics, a 2 s initial window), the demo's follower (standoff
-// 8 mm, offset gain 0.05, scale estimated) and the simulated catheter's servo (live/
-// sim_catheter.h, the seed's catheter, seed 1): live::DemoSettings of the default DemoOptions.
+// The live pipeline's settings (what `track`, `servo`, `demo` and a replay run without --set):
+// PipelineSettings{} with the simulated catheter's calibrated servo (live/sim_catheter.h, the
+// seed's catheter, seed 1). The registry's defaults (`tune params`).
 PipelineSettings DefaultSettings();
+
+// For tests of the one-declaration rule: sets `name` without the registry's bounds check, so
+// that the modules' own validation (ValidateSettings) can be seen to enforce the same bounds.
+void SetUnchecked(PipelineSettings& s, std::string_view name, double value);
+// Every module's validation of `s` and the combinations the bounds cannot express; throws
+// std::invalid_argument naming the parameter (Apply runs it after the assignments).
+void ValidateSettings(const PipelineSettings& s);
 
 // Every parameter, sorted by name.
 const std::vector<ParameterInfo>& Parameters();

@@ -35,7 +35,8 @@ void ServoRuntimeOptions::Validate() const {
     bad("pipeline_clock", "is required for the real-time clock");
   if (!std::isfinite(t0_s)) bad("t0_s", "must be finite");
   if (clock == ServoClock::kRealtime && t0_s != 0.0)
-    bad("t0_s", "must be 0 on the real-time clock (cycle k is due at k·period on the pipeline clock)");
+    bad("t0_s",
+        "must be 0 on the real-time clock (cycle k is due at k·period on the pipeline clock)");
   if (!(std::isfinite(duration_s) && duration_s >= 0.0)) bad("duration_s", "must be ≥ 0 s");
   if (clock == ServoClock::kSimulated && duration_s == 0.0 && !stop)
     bad("duration_s", "must be > 0 s on simulated time without a stop condition");

@@ -56,8 +56,8 @@ struct ServoRuntimeOptions {
   // time settings the calling thread gets (refusals are reported, not errors).
   const PipelineClock* pipeline_clock = nullptr;
   control::RealtimeOptions realtime;
-  double t0_s = 0.0;        // the first cycle's time
-  double duration_s = 0.0;  // cycles while t ≤ t0_s + duration_s; 0: until stop
+  double t0_s = 0.0;                      // the first cycle's time
+  double duration_s = 0.0;                // cycles while t ≤ t0_s + duration_s; 0: until stop
   DelayedEstimates* estimates = nullptr;  // in-process feed; null: the node's DDS link
   std::function<bool()> stop;             // checked every cycle; may be null
   void Validate() const;                  // throws std::invalid_argument naming the field

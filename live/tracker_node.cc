@@ -25,6 +25,13 @@ estimation::PredictorCompetitionOptions TrackerNodeOptions::CompetitionOptions()
   return c;
 }
 
+void TrackerNodeOptions::Validate() const {
+  params::kPredictionLatencyS.Check(prediction_latency_s, "TrackerNodeOptions");
+  params::kStampDelayS.Check(stamp_delay_s, "TrackerNodeOptions");
+  detector.Validate();
+  estimation::HeartbeatEkf check(ekf);  // the EKF's own validation
+}
+
 TrackerNode::TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publisher,
                          formats::RunWriter* writer)
     : o_(std::move(options)),
@@ -33,9 +40,7 @@ TrackerNode::TrackerNode(TrackerNodeOptions options, link::TargetPublisher* publ
       detector_(o_.detector),
       competition_(o_.CompetitionOptions()),
       significance_(o_.significance) {
-  if (!(o_.stamp_delay_s >= 0.0 && o_.stamp_delay_s <= 0.5))
-    throw std::invalid_argument("TrackerNodeOptions::stamp_delay_s must be in [0, 0.5] s, got " +
-                                std::to_string(o_.stamp_delay_s));
+  o_.Validate();
 }
 
 TrackedVolume TrackerNode::Process(const imaging::Volume& volume, double stamp_s, double arrived_s,

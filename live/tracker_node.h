@@ -21,6 +21,7 @@
 #include "estimation/heartbeat_ekf.h"
 #include "estimation/heartbeat_significance.h"
 #include "estimation/predictor_competition.h"
+#include "formats/parameter_spec.h"
 #include "imaging/volume.h"
 #include "link/dds_link.h"
 #include "tracking/radon_detector.h"
@@ -41,6 +42,38 @@ namespace echoservo::live {
 // invented on a static or non-periodic target) and heartbeat().reason says why.
 enum class TargetPredictor { kHeartbeatEkf, kZeroOrderHold };
 
+// The tracker node's own tunable parameters (formats/parameter_spec.h): declared once, read by
+// the defaults below, by Validate and by the pipeline's registry (live/pipeline_parameters.h).
+namespace params {
+inline constexpr formats::ParameterSpec kPredictionLatencyS{
+    "predictor.latency_s",
+    "s",
+    formats::ParameterKind::kReal,
+    0,
+    1,
+    0.1,
+    "the horizon the predictor competition scores its competitors at: the imaging delay plus "
+    "publication"};
+inline constexpr formats::ParameterSpec kStampDelayS{
+    "scanner.stamp_delay_s",
+    "s",
+    formats::ParameterKind::kReal,
+    0,
+    0.5,
+    0.0,
+    "how late the scanner stamps its volumes after acquiring them (stamped at sending: PLUS's "
+    "LocalTimeOffsetSec of a video device); the tracker subtracts it"};
+inline constexpr formats::ParameterSpec kZeroOrderHold{
+    "predictor.zero_order_hold",
+    "1",
+    formats::ParameterKind::kBool,
+    0,
+    1,
+    0,
+    "1: publish the newest measurement as a constant (the baseline: no prediction through the "
+    "delay) instead of the predictor competition's motion"};
+}  // namespace params
+
 struct TrackerNodeOptions {
   TargetPredictor predictor = TargetPredictor::kHeartbeatEkf;
   tracking::RadonDetectorOptions detector;
@@ -51,14 +84,16 @@ struct TrackerNodeOptions {
   bool follow_static_target = false;
   double link_offset_s = 0.0;  // link time − node time
   // The horizon the competitors are scored at (s): the imaging delay plus publication.
-  double prediction_latency_s = 0.1;
+  double prediction_latency_s = params::kPredictionLatencyS.default_value;
   // The scanner stamps volumes this long after their acquisition (it stamps at sending, not
   // at acquisition: PLUS's LocalTimeOffsetSec of a video device): Process subtracts it from
   // the acquisition time it is given. [0, 0.5] s.
-  double stamp_delay_s = 0.0;
+  double stamp_delay_s = params::kStampDelayS.default_value;
 
   // The live defaults: a 2 s initial window, 8 harmonics.
   static estimation::HeartbeatEkfOptions DefaultEkfOptions();
+  // Throws std::invalid_argument naming the parameter (this node's, the detector's, the EKF's).
+  void Validate() const;
   // The competition's options from these (EKF options, latency).
   estimation::PredictorCompetitionOptions CompetitionOptions() const;
 };

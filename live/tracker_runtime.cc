@@ -13,8 +13,8 @@ TrackerRuntime::TrackerRuntime(TrackerRuntimeOptions options)
   if (o_.record_queue_volumes < 1)
     throw std::invalid_argument("TrackerRuntimeOptions::record_queue_volumes must be ≥ 1");
   if (!o_.record_to.empty())
-    recorder_ = std::make_unique<imaging::AsyncSequenceWriter>(o_.record_to,
-                                                               o_.record_queue_volumes);
+    recorder_ =
+        std::make_unique<imaging::AsyncSequenceWriter>(o_.record_to, o_.record_queue_volumes);
 }
 
 TrackerRuntime::~TrackerRuntime() = default;

@@ -28,13 +28,13 @@ ScoredWindow WindowAfterFollowing(double following_s, std::optional<double> hear
   w.settle_s = SettleTimeS(heart_rate_hz);
   w.from_s = following_s + w.settle_s;
   const bool rate = heart_rate_hz && *heart_rate_hz > 0.0 && std::isfinite(*heart_rate_hz);
-  w.reason = "servo began following at " + WindowFixed(following_s, 2) + " s + settling " +
-             WindowFixed(w.settle_s, 2) + " s (" +
-             (rate ? WindowFixed(kSettleBeats, 0) + " beats at " +
-                         WindowFixed(60.0 * *heart_rate_hz, 1) + " bpm, at least " +
-                         WindowFixed(kMinSettleS, 1) + " s"
-                   : "no heart rate stated: " + WindowFixed(kMinSettleS, 1) + " s") +
-             ")";
+  w.reason =
+      "servo began following at " + WindowFixed(following_s, 2) + " s + settling " +
+      WindowFixed(w.settle_s, 2) + " s (" +
+      (rate ? WindowFixed(kSettleBeats, 0) + " beats at " + WindowFixed(60.0 * *heart_rate_hz, 1) +
+                  " bpm, at least " + WindowFixed(kMinSettleS, 1) + " s"
+            : "no heart rate stated: " + WindowFixed(kMinSettleS, 1) + " s") +
+      ")";
   return w;
 }
 

@@ -15,6 +15,7 @@
 
 #include <Eigen/Core>
 
+#include "formats/parameter_spec.h"
 #include "imaging/volume.h"
 #include "tracking/line_fit.h"
 
@@ -28,24 +29,87 @@ namespace echoservo::tracking {
 // to the amplitude displayed as 0.
 double EchoAmplitude(double display, double dynamic_range_db);
 
+// The target profile's tunable parameters (formats/parameter_spec.h), and the scanner's
+// dynamic range its edges share with the detector: declared once, read by the defaults below,
+// by RadonDetectorOptions::Validate and by the registry (live/pipeline_parameters.h).
+namespace params {
+inline constexpr formats::ParameterSpec kDynamicRangeDb{
+    "detector.dynamic_range_db",
+    "dB",
+    formats::ParameterKind::kReal,
+    10,
+    120,
+    50.0,
+    "the scanner's display dynamic range (0-255 spans it): edges and the tube check work in "
+    "echo amplitude; clinical 3D scanners use 30-80 dB"};
+inline constexpr formats::ParameterSpec kEdgeFraction{
+    "target.edge_fraction",
+    "1",
+    formats::ParameterKind::kReal,
+    0.05,
+    0.95,
+    0.5,
+    "tip and target edges at this fraction between background and echo level, in echo "
+    "amplitude (0.5: the half-amplitude point of a symmetric blur)"};
+inline constexpr formats::ParameterSpec kTipFirstEchoMm{
+    "target.tip_first_echo_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    0,
+    20,
+    3.0,
+    "the tip's edge uses first echoes only: a brighter sample this close nearer the probe "
+    "marks a reverberation tail; 0: off"};
+inline constexpr formats::ParameterSpec kLateralRadiusMm{
+    "target.lateral_radius_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    0.5,
+    20,
+    3.5,
+    "the target search's rays beside the tip run at this radius from the axis (beyond the "
+    "catheter's own echo)"};
+inline constexpr formats::ParameterSpec kCloseGapMm{
+    "target.close_gap_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    1.5,
+    20,
+    4.0,
+    "gaps below this come from the surface beside the tip (the tip's and the tissue's echoes "
+    "merge on the axis: about the axial resolution, >= 1.5 mm)"};
+inline constexpr formats::ParameterSpec kContactGapMm{
+    "target.contact_gap_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    0,
+    2,
+    0.3,
+    "at or below this gap the tip touches the tissue (contact, gap 0); less than "
+    "target.close_gap_mm"};
+}  // namespace params
+
 struct EdgeOptions {
-  double dynamic_range_db = 50.0;  // the scanner's display dynamic range, (0, 120]
-  double edge_fraction = 0.5;      // edge at this fraction between background and level, (0, 1)
+  double dynamic_range_db =
+      params::kDynamicRangeDb.default_value;  // the scanner's display dynamic range, (0, 120]
+  double edge_fraction =
+      params::kEdgeFraction
+          .default_value;  // edge at this fraction between background and level, (0, 1)
   // The tip's edge is located on first echoes only: a sample with a brighter one up to this
   // far nearer the transducer along its beam is a reverberation tail, not the wire [0, 50)
   // mm; 0: off. See FindTip.
-  double tip_first_echo_mm = 3.0;
+  double tip_first_echo_mm = params::kTipFirstEchoMm.default_value;
   // Target search beside the tip (FindTarget): rays parallel to the axis at this radius
   // (beyond the catheter's), (0, 20] mm, starting this far before the tip, [3, 30] mm (the
   // first 4 mm are their background; FindTip's tip can lie behind a 3 mm tissue).
-  double lateral_radius_mm = 3.5;
+  double lateral_radius_mm = params::kLateralRadiusMm.default_value;
   double lateral_back_mm = 10.0;
   // Gaps below close_gap_mm are taken from the surface beside the tip (the tip's echo and
   // the tissue's merge on the axis), (0, 20] mm; at or below contact_gap_mm the tip touches
   // the tissue (contact, gap 0), [0, close_gap_mm); an axial target within doubt_gap_mm of
   // the tip needs the surface beside the tip to confirm it, [0, close_gap_mm).
-  double close_gap_mm = 4.0;
-  double contact_gap_mm = 0.3;
+  double close_gap_mm = params::kCloseGapMm.default_value;
+  double contact_gap_mm = params::kContactGapMm.default_value;
   double doubt_gap_mm = 1.0;
 };
 

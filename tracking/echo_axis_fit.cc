@@ -244,10 +244,10 @@ void EchoAxisFitOptions::Validate() const {
   auto bad = [](const std::string& f, const std::string& why) {
     throw std::invalid_argument("EchoAxisFitOptions: " + f + " " + why);
   };
-  if (!(fit_radius_mm > 0 && fit_radius_mm < 50)) bad("fit_radius_mm", "must be in (0, 50)");
-  if (!(first_echo_mm >= 0 && first_echo_mm < 50)) bad("first_echo_mm", "must be in [0, 50)");
-  if (!(sheath_diameter_mm >= 0 && sheath_diameter_mm <= 20))
-    bad("sheath_diameter_mm", "must be in [0, 20]");
+  params::kFitRadiusMm.Check(fit_radius_mm, "EchoAxisFitOptions");
+  params::kFirstEchoMm.Check(first_echo_mm, "EchoAxisFitOptions");
+  params::kSheathDiameterMm.Check(sheath_diameter_mm, "EchoAxisFitOptions");
+  params::kWireDiameterMm.Check(wire_diameter_mm, "EchoAxisFitOptions");
   if (!(wire_diameter_mm >= 0 && wire_diameter_mm <= sheath_diameter_mm))
     bad("wire_diameter_mm", "must be in [0, sheath_diameter_mm]");
   if (!(min_sheath_span_mm >= 0 && std::isfinite(min_sheath_span_mm)))

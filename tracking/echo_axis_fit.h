@@ -15,16 +15,63 @@
 
 #include <optional>
 
+#include "formats/parameter_spec.h"
 #include "imaging/volume.h"
 #include "tracking/line_fit.h"
 
 namespace echoservo::tracking {
 
+// The axis fit's tunable parameters (formats/parameter_spec.h): declared once, read by the
+// options' defaults, by Validate and by the pipeline's registry (live/pipeline_parameters.h).
+namespace params {
+inline constexpr formats::ParameterSpec kFitRadiusMm{
+    "detector.fit_radius_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    0.5,
+    10,
+    2.5,
+    "axis fit: echoes within this distance of the Radon line join the fit (the catheter's "
+    "radius plus the point-spread function)"};
+inline constexpr formats::ParameterSpec kFirstEchoMm{
+    "detector.first_echo_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    0,
+    20,
+    3.0,
+    "axis fit: look-back along the beam for the first-echo rule (a brighter echo this close "
+    "nearer the probe makes a sample a reverberation); 0: off"};
+// ≤ 10 mm: 30 Fr, above the largest cardiac delivery sheaths (24–26 Fr, ~8.7 mm).
+inline constexpr formats::ParameterSpec kSheathDiameterMm{
+    "detector.sheath_diameter_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    0,
+    10,
+    2.5,
+    "the sheath's outer diameter: a beam echoes at the near wall, so the axis lies a radius "
+    "behind the echoes; 0: the echoes are the axis; <= 10 mm (30 Fr)"};
+inline constexpr formats::ParameterSpec kWireDiameterMm{
+    "detector.wire_diameter_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    0,
+    10,
+    0.9,
+    "the guidewire's outer diameter (its near-wall offset beyond the sheath), at most the "
+    "sheath's"};
+}  // namespace params
+
 struct EchoAxisFitOptions {
-  double fit_radius_mm = 2.5;       // echoes within this distance of the start line
-  double first_echo_mm = 3.0;       // look-back along the beam for the first-echo rule; 0: off
-  double sheath_diameter_mm = 2.5;  // outer diameter of the sheath; 0: echoes are the axis
-  double wire_diameter_mm = 0.9;    // outer diameter of the guidewire, ≤ sheath_diameter_mm
+  // echoes within this distance of the start line
+  double fit_radius_mm = params::kFitRadiusMm.default_value;
+  // look-back along the beam for the first-echo rule; 0: off
+  double first_echo_mm = params::kFirstEchoMm.default_value;
+  // outer diameter of the sheath; 0: echoes are the axis
+  double sheath_diameter_mm = params::kSheathDiameterMm.default_value;
+  // outer diameter of the guidewire, ≤ sheath_diameter_mm
+  double wire_diameter_mm = params::kWireDiameterMm.default_value;
   // The axis comes from the sheath's echoes alone when they span at least this much.
   double min_sheath_span_mm = 10.0;
   // Echo threshold between the background (0) and the catheter's echo level (→ 1).

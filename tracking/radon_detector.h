@@ -24,20 +24,63 @@
 
 namespace echoservo::tracking {
 
+// The detector's own tunable parameters (formats/parameter_spec.h); its axis fit's and edges'
+// are declared beside them (tracking/echo_axis_fit.h, tracking/axis_profile.h).
+namespace params {
+inline constexpr formats::ParameterSpec kCoarseDirections{
+    "detector.coarse_directions",
+    "1",
+    formats::ParameterKind::kInteger,
+    100,
+    20000,
+    2000,
+    "directions of the coarse Radon search's hemisphere (angular step ~sqrt(2pi/N): 0.18 rad at "
+    "200, 0.018 rad at 20000); the detector's main cost"};
+inline constexpr formats::ParameterSpec kMinConfidence{
+    "detector.min_confidence",
+    "1",
+    formats::ParameterKind::kReal,
+    0,
+    1,
+    0.5,
+    "detections below this confidence are not found (tracking falls back to a full search)"};
+inline constexpr formats::ParameterSpec kTrackingConeRad{
+    "detector.tracking_cone_rad",
+    "rad",
+    formats::ParameterKind::kReal,
+    0.02,
+    1.0,
+    0.17,
+    "tracking searches this half-angle around the previous axis (the catheter's turn between "
+    "volumes); 1 rad is nearly a full search"};
+inline constexpr formats::ParameterSpec kTrackingWindowMm{
+    "detector.tracking_window_mm",
+    "mm",
+    formats::ParameterKind::kReal,
+    0.5,
+    30,
+    6.0,
+    "tracking searches offsets this far around the previous axis (the catheter's sideways "
+    "motion between volumes)"};
+}  // namespace params
+
 struct RadonDetectorOptions {
-  int coarse_factor = 4;         // first max-pooling factor (voxels), ≥ 2
-  int coarse_directions = 2000;  // Fibonacci hemisphere size at the coarse level
-  double fine_cone_rad = 0.08;   // refinement cone half-angle around the coarse best
-  int fine_steps = 9;            // refinement grid, fine_steps² directions per pass
+  int coarse_factor = 4;  // first max-pooling factor (voxels), ≥ 2
+  int coarse_directions = static_cast<int>(
+      params::kCoarseDirections.default_value);  // Fibonacci hemisphere size at the coarse level
+  double fine_cone_rad = 0.08;  // refinement cone half-angle around the coarse best
+  int fine_steps = 9;           // refinement grid, fine_steps² directions per pass
   // Full-resolution axis fit (tracking/echo_axis_fit.h): fit cylinder, first-echo look-back
   // along the beam, and the catheter's outer diameters (the echo comes from the near wall).
   EchoAxisFitOptions fit;
   TubeCheckOptions tube;            // tube vs surface test (tracking/tube_check.h)
   EdgeOptions edge;                 // tip and target edges (tracking/axis_profile.h)
   double min_line_length_mm = 6.0;  // shorter bright runs are not a catheter
-  double min_confidence = 0.5;      // below: not found
-  double tracking_cone_rad = 0.17;  // tracking search cone half-angle (~10°)
-  double tracking_window_mm = 6.0;  // tracking offset window around the previous axis
+  double min_confidence = params::kMinConfidence.default_value;  // below: not found
+  // tracking search cone half-angle (~10°)
+  double tracking_cone_rad = params::kTrackingConeRad.default_value;
+  // tracking offset window around the previous axis
+  double tracking_window_mm = params::kTrackingWindowMm.default_value;
   // Lines whose point nearest the volume centre lies deeper (image z) than this fraction of
   // the volume's depth are ignored: far-field walls (tank floor) make bright strips there.
   double max_depth_fraction = 1.0;

@@ -42,12 +42,13 @@ struct ServoArgs {
   RealtimeFlags rt;
   SetFlags set;  // --set NAME=VALUE: the follower's and the servo's parameters
   double duration_s = 0.0;
-  double standoff_mm = 8.0;
+  double standoff_mm = live::LiveFollowerConfig().standoff_mm;
   bool auto_enable = false;
   double sheath_id_mm = 1.59, guidewire_od_mm = 1.50;
   std::uint64_t seed = 1;
   double state_rate_hz = 100.0;
-  double stale_after_s = 0.25, retract_after_s = 0.5;
+  double stale_after_s = live::LiveFollowerConfig().stale_after_s,
+         retract_after_s = live::LiveFollowerConfig().retract_after_s;
   bool json = false;
 };
 

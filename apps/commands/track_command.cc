@@ -93,9 +93,9 @@ struct TrackArgs {
   bool json = false;
   bool follow_static_target = false;  // TrackerNodeOptions::follow_static_target
   // EKF
-  int harmonics = 8;
-  int max_harmonics = 8;
-  double init_window_s = 2.0;
+  int harmonics = live::TrackerNodeOptions::DefaultEkfOptions().harmonics;
+  int max_harmonics = live::TrackerNodeOptions::DefaultEkfOptions().max_harmonics;
+  double init_window_s = live::TrackerNodeOptions::DefaultEkfOptions().init_window_s;
   // --sim
   double rate_hz = 25.0, delay_min_s = 0.05, delay_max_s = 0.10, heart_rate_bpm = 60.0,
          target_p2p_mm = 10.0;

@@ -203,11 +203,12 @@ TEST(Cli, TuneParamsListsEveryParameterThatSetAccepts) {
   EXPECT_EQ(part.size(), per_stage["detector"]);
   for (const auto& p : part) EXPECT_EQ(p["stage"], "detector");
   EXPECT_NE(RunCli("tune params --stage tracker").err.find("unknown stage"), std::string::npos);
-  // Every name at its upper bound passes --set (the error is then the missing recording's,
+  // Every name at its upper bound passes `tune trial`'s --set (every stage runs there; the
+  // error is then the missing recording's,
   // not a parameter's): a 10 mm guidewire fits a 10 mm sheath, contact (2 mm) is closer than
   // a close gap of 20 mm. The lower bounds: tests/live/pipeline_parameters_test.cc.
   TempDir dir("tune_params_cli", true);
-  const Result t = RunCli("track --replay missing.igs.mha" + at_max, dir.path());
+  const Result t = RunCli("tune trial --recording missing.igs.mha" + at_max, dir.path());
   EXPECT_NE(t.rc, 0);
   EXPECT_NE(t.err.find("missing.igs.mha"), std::string::npos) << t.err;
   EXPECT_EQ(t.err.find("parameter"), std::string::npos) << t.err;

@@ -274,7 +274,11 @@ TEST(HeartbeatEkf, BadInputIsAnError) {
   o.harmonics = 13;
   ExpectContains(InvalidArgumentMessage([&] { HeartbeatEkf{o}; }), "harmonics");
   o = {};
-  o.init_window_s = 1.0;  // less than one beat at 36 bpm
+  o.init_window_s = 1.0;  // below the parameter's bound (1.7 s: one beat at 36 bpm)
+  ExpectContains(InvalidArgumentMessage([&] { HeartbeatEkf{o}; }),
+                 "parameter 'predictor.init_window_s' = 1: outside its bounds [1.7, 30] s");
+  o.min_rate_hz = 0.5;
+  o.init_window_s = 1.8;  // within the bound, yet less than one beat at 30 bpm
   ExpectContains(InvalidArgumentMessage([&] { HeartbeatEkf{o}; }), "one beat");
 }
 

@@ -42,14 +42,15 @@ struct ServoRig {
   SimCatheter catheter = MakeSimCatheter(1.59, 1.50, 1);
   ServoNode node;
   ServoRig()
-      : node(*catheter.plant, catheter.servo, std::move(catheter.compensator),
-             [] {
-               ServoNodeOptions o;
-               o.follower.standoff_mm = 2.0;
-               o.auto_enable = true;
-               return o;
-             }(),
-             nullptr) {}
+      : node(
+            *catheter.plant, catheter.servo, std::move(catheter.compensator),
+            [] {
+              ServoNodeOptions o;
+              o.follower.standoff_mm = 2.0;
+              o.auto_enable = true;
+              return o;
+            }(),
+            nullptr) {}
   double Tip() const { return catheter.plant->state(hw::iface::kTipPosition); }
 };
 
@@ -67,21 +68,24 @@ TEST(ServoRuntime, SimulatedTimeRunsEveryCycleInOrderAndDeliversEstimatesWhenDue
   std::optional<double> first_applied_s;
   double err_sq = 0.0;
   std::size_t err_n = 0;
-  const ServoRunResult r = ServoRuntime(rig.node, o).Run(
-      [&](std::uint64_t k, double t) {
-        before_t.push_back(t);
-        // A volume every 40 ms, delivered 60 ms after its acquisition.
-        if (k % 40 == 0) estimates.Push(RuntimeEstimate(t, ++seq, rig.Tip()), t + 0.06);
-      },
-      [&](std::uint64_t, double t, const ServoCycle& c) {
-        after_t.push_back(t);
-        if (rig.node.stats().estimates_accepted > 0 && !first_applied_s) first_applied_s = t;
-        if (t > 6.5) {  // following for 1.4 s: the tip at the target less the standoff
-          const double e = c.record.tip_mm - c.record.reference_mm;
-          err_sq += e * e;
-          ++err_n;
-        }
-      });
+  const ServoRunResult r =
+      ServoRuntime(rig.node, o)
+          .Run(
+              [&](std::uint64_t k, double t) {
+                before_t.push_back(t);
+                // A volume every 40 ms, delivered 60 ms after its acquisition.
+                if (k % 40 == 0) estimates.Push(RuntimeEstimate(t, ++seq, rig.Tip()), t + 0.06);
+              },
+              [&](std::uint64_t, double t, const ServoCycle& c) {
+                after_t.push_back(t);
+                if (rig.node.stats().estimates_accepted > 0 && !first_applied_s)
+                  first_applied_s = t;
+                if (t > 6.5) {  // following for 1.4 s: the tip at the target less the standoff
+                  const double e = c.record.tip_mm - c.record.reference_mm;
+                  err_sq += e * e;
+                  ++err_n;
+                }
+              });
   const std::size_t cycles = static_cast<std::size_t>(std::llround(3.0 / period)) + 1;
   EXPECT_EQ(r.cycles, cycles);
   ASSERT_EQ(before_t.size(), cycles);
@@ -148,8 +152,7 @@ TEST(ServoRuntime, BadOptionsAreNamed) {
   testing::ExpectContains(InvalidArgumentMessage([&] { ServoRuntime(rig.node, o); }),
                           "pipeline_clock");
   o.clock = ServoClock::kSimulated;
-  testing::ExpectContains(InvalidArgumentMessage([&] { ServoRuntime(rig.node, o); }),
-                          "duration_s");
+  testing::ExpectContains(InvalidArgumentMessage([&] { ServoRuntime(rig.node, o); }), "duration_s");
   o.duration_s = -1.0;
   testing::ExpectContains(InvalidArgumentMessage([&] { ServoRuntime(rig.node, o); }),
                           "duration_s must be ≥ 0 s");
