@@ -52,7 +52,8 @@
 #include "live/pipeline_clock.h"
 #include "live/sim_catheter.h"
 #include "live/sim_scene.h"
-#include "live/tracker_node.h"
+#include "live/tracker_runtime.h"
+#include "live/tracker_source.h"
 
 namespace control = echoservo::control;
 namespace live = echoservo::live;
@@ -210,39 +211,33 @@ class TrackerLoad final : public Load {
  public:
   explicit TrackerLoad(double duration_s)
       : scene_(live::SimSceneOptions{}),
-        node_(live::TrackerNodeOptions{}, nullptr, nullptr),
-        scanner_(scene_, clock_, {25.0, 0.05, 0.10, duration_s, 1}) {
-    thread_ = std::thread([this] {
-      while (!stop_) {
-        std::optional<live::Delivery> d = scanner_.Next(0.05);
-        if (!d) {
-          if (scanner_.finished()) break;
-          continue;
-        }
-        node_.Process(d->volume, d->acquired_s, clock_.Now(), [this] { return clock_.Now(); });
-        ++volumes_;
-      }
-    });
+        source_(scene_, clock_, {25.0, 0.05, 0.10, duration_s, 1}),
+        runtime_([this] {
+          live::TrackerRuntimeOptions o;
+          o.on_tracked = [this](const live::TrackedVolume&, const live::SourceVolume&, double) {
+            ++volumes_;
+          };
+          return o;
+        }()) {
+    thread_ = std::thread([this] { runtime_.Run(source_); });
   }
   ~TrackerLoad() override {
-    stop_ = true;
-    scanner_.Stop();
+    source_.Stop();
     thread_.join();
   }
   double Work() const override { return static_cast<double>(volumes_.load()); }
   std::string WorkUnit() const override { return "volumes tracked"; }
   std::string Describe() const override {
-    return "tracker: simulated scanner 25 vol/s (1 rendering thread) + Radon detector and "
-           "predictor on each newest volume, normal priority";
+    return "tracker: simulated scanner 25 vol/s (1 rendering thread) + the tracker runtime "
+           "(Radon detector and predictor) on each newest volume, normal priority";
   }
 
  private:
   live::SimScene scene_;
   live::PipelineClock clock_{0.3};
-  live::TrackerNode node_;
-  live::DelayedScanner scanner_;
-  std::atomic<bool> stop_{false};
+  live::SimScannerSource source_;
   std::atomic<std::uint64_t> volumes_{0};
+  live::TrackerRuntime runtime_;
   std::thread thread_;
 };
 

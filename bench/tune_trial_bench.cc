@@ -23,7 +23,8 @@
 
 #include "imaging/io/sequence_reader.h"
 #include "live/pipeline_parameters.h"
-#include "live/tracker_node.h"
+#include "live/tracker_runtime.h"
+#include "live/tracker_source.h"
 
 namespace {
 
@@ -51,17 +52,11 @@ double Median(std::vector<double> v) {
 // The replay alone: open, read every volume, track it (what `track --replay` does, no RUN).
 double Replay(const fs::path& recording, std::size_t& measured) {
   const auto t0 = Clock::now();
-  echoservo::imaging::SequenceReader reader(recording);
-  echoservo::live::TrackerNode node(echoservo::live::DefaultSettings().tracker, nullptr, nullptr);
-  double last = -1e300;
-  for (std::size_t i = 0; i < reader.size(); ++i) {
-    const echoservo::imaging::Volume v = reader.ReadVolume(i);
-    const double t = v.timestamp_s();
-    if (!(t > last)) continue;
-    last = t;
-    node.Process(v, t, t, [t] { return t; });
-  }
-  measured = node.stats().measured;
+  echoservo::live::TrackerRuntimeOptions o;
+  o.node = echoservo::live::DefaultSettings().tracker;
+  echoservo::live::TrackerRuntime runtime(o);
+  echoservo::live::ReplaySource source(recording);
+  measured = runtime.Run(source).stats.measured;
   return Seconds(t0, Clock::now());
 }
 

@@ -22,8 +22,7 @@ std::string FormatParameterValue(double v) {
 
 void ParameterSpec::Check(double value, std::string_view owner) const {
   const std::string head = (owner.empty() ? std::string() : std::string(owner) + ": ") +
-                           "parameter '" + std::string(name) +
-                           "' = " + FormatParameterValue(value);
+                           "parameter '" + std::string(name) + "' = " + FormatParameterValue(value);
   if (!std::isfinite(value)) throw std::invalid_argument(head + ": must be a finite number");
   if (kind == ParameterKind::kInteger && value != std::round(value))
     throw std::invalid_argument(head + ": must be an integer");

@@ -222,23 +222,16 @@ void TrialRequest::Validate() const {
   }
 }
 
-TrialResult RunTrial(const TrialRequest& request) { return RunTrial(request, nullptr); }
+namespace {
 
-TrialResult RunTrial(const TrialRequest& request, TrialTrace* trace) {
-  request.Validate();
-  const auto start = Clock::now();
+// Replay: every volume in order through the tracker runtime (no link, no RUN writer), the one
+// `track --replay` and `demo` run. Fills the result's counts and timings; `axis`: the node's
+// reference axis.
+std::vector<TrialVolume> TrialReplay(const TrialRequest& request,
+                                     const live::PipelineSettings& settings,
+                                     const TrialPaths& paths, Clock::time_point start,
+                                     TrialResult& result, std::optional<Eigen::Vector3d>& axis) {
   const std::string& rec = request.recording;
-  const TrialPaths paths = TrialResolve(rec, request.em_log);
-  live::PipelineSettings settings = live::DefaultSettings();
-  settings.tracker.prediction_latency_s = request.latency_s;  // unless a setting says otherwise
-  try {
-    live::Apply(request.settings, settings);
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(std::string("trial settings: ") + e.what());
-  }
-  TrialResult result;
-  // Replay: every volume in order through the tracker runtime (no link, no RUN writer), the
-  // one `track --replay` and `demo` run.
   std::vector<TrialVolume> vols;
   live::TrackerRuntimeOptions ro;
   ro.node = settings.tracker;
@@ -285,253 +278,312 @@ TrialResult RunTrial(const TrialRequest& request, TrialTrace* trace) {
         std::to_string(result.measured) +
         " measured volumes (else a hold); at the end: " + node.heartbeat().reason);
   }
+  axis = node.reference_axis();
+  return vols;
+}
 
-  // Scores run on the real clock (the truth's acquisition times where the recording has them):
-  // the servo evaluates the shipped motion at its own time, so a tracker that takes the stamps
-  // of a late-stamping scanner for acquisition times (scanner.stamp_delay_s too small) ships a
-  // motion shifted in time, and the scores against truth show it.
+// The scores of one replay (RunTrial): each metric from the replayed volumes, on the real clock
+// (the truth's acquisition times where the recording has them): the servo evaluates the shipped
+// motion at its own time, so a tracker that takes the stamps of a late-stamping scanner for
+// acquisition times (scanner.stamp_delay_s too small) ships a motion shifted in time, and the
+// scores against truth show it.
+struct TrialScorer {
+  const TrialRequest& request;
+  const live::PipelineSettings& settings;
+  const TrialPaths& paths;
+  const std::vector<TrialVolume>& vols;
+  const std::optional<Eigen::Vector3d> axis;  // the node's reference axis
+  TrialResult& result;
+  TrialTrace* trace;
+  std::map<std::string, double>& m = result.metrics;
+  const std::string& rec = request.recording;
   const double t0 = vols.front().true_s;
   const double from = t0 + request.from_s;
-  auto& m = result.metrics;
-  m[metric::kFoundFraction] =
-      static_cast<double>(std::count_if(
-          vols.begin(), vols.end(),
-          [](const TrialVolume& v) { return v.detection.found && v.detection.target_found; })) /
-      static_cast<double>(vols.size());
+  std::optional<estimation::MotionTrace> measured_trace{}, truth_trace{};
+  std::optional<estimation::TraceInterpolator> measured_at{}, truth_at{};
 
-  // Latency.
-  {
-    std::vector<double> ms;
-    for (const TrialVolume& v : vols) ms.push_back(v.process_ms);
-    m[metric::kLatencyP50] = report::Percentile(ms, 0.5);
-    m[metric::kLatencyP99] = report::Percentile(ms, 0.99);
+  void FoundAndLatency() {
+    m[metric::kFoundFraction] =
+        static_cast<double>(std::count_if(
+            vols.begin(), vols.end(),
+            [](const TrialVolume& v) { return v.detection.found && v.detection.target_found; })) /
+        static_cast<double>(vols.size());
+
+    // Latency.
+    {
+      std::vector<double> ms;
+      for (const TrialVolume& v : vols) ms.push_back(v.process_ms);
+      m[metric::kLatencyP50] = report::Percentile(ms, 0.5);
+      m[metric::kLatencyP99] = report::Percentile(ms, 0.99);
+    }
   }
 
-  // Detection against the truth fields (found volumes after from_s).
-  const bool truth = vols.front().truth.has_value();
-  if (truth) {
-    TrialRms tip, target, angle;
-    for (const TrialVolume& v : vols) {
-      if (v.true_s < from || !v.truth || !v.detection.found) continue;
-      const imaging::FrameGroundTruth& g = *v.truth;
-      if (!g.catheter_visible) continue;
-      tip.Add((v.detection.tip_mm - g.tip_mm).norm());
-      const double c = std::clamp(
-          std::abs(v.detection.axis.direction.normalized().dot(g.axis_direction.normalized())), 0.0,
-          1.0);
-      angle.Add(std::acos(c));
-      if (v.detection.target_found && g.target_visible)
-        target.Add((v.detection.target_mm - g.target_mm).norm());
+  void Detection() {
+    // Detection against the truth fields (found volumes after from_s).
+    const bool truth = vols.front().truth.has_value();
+    if (truth) {
+      TrialRms tip, target, angle;
+      for (const TrialVolume& v : vols) {
+        if (v.true_s < from || !v.truth || !v.detection.found) continue;
+        const imaging::FrameGroundTruth& g = *v.truth;
+        if (!g.catheter_visible) continue;
+        tip.Add((v.detection.tip_mm - g.tip_mm).norm());
+        const double c = std::clamp(
+            std::abs(v.detection.axis.direction.normalized().dot(g.axis_direction.normalized())),
+            0.0, 1.0);
+        angle.Add(std::acos(c));
+        if (v.detection.target_found && g.target_visible)
+          target.Add((v.detection.target_mm - g.target_mm).norm());
+      }
+      if (tip.n > 0) {
+        m[metric::kTipRms] = tip.Value();
+        m[metric::kAxisAngleRms] = angle.Value();
+      } else {
+        result.notes.push_back("detection: no catheter found after from_s with truth to score");
+      }
+      if (target.n > 0) m[metric::kTargetRms] = target.Value();
     }
-    if (tip.n > 0) {
-      m[metric::kTipRms] = tip.Value();
-      m[metric::kAxisAngleRms] = angle.Value();
-    } else {
-      result.notes.push_back("detection: no catheter found after from_s with truth to score");
-    }
-    if (target.n > 0) m[metric::kTargetRms] = target.Value();
   }
 
   // Axis coordinates: along the first detection's axis (the node's reference axis).
-  const std::optional<Eigen::Vector3d> axis = node.reference_axis();
-  std::optional<estimation::MotionTrace> measured_trace, truth_trace;
-  if (axis) {
-    std::vector<double> mt, ms, tt, ts;
-    for (const TrialVolume& v : vols) {
-      if (v.measured) {
-        mt.push_back(v.t_s);
-        ms.push_back(v.detection.target_mm.dot(*axis));
-      }
-      if (v.truth && v.truth->target_visible) {
-        tt.push_back(v.true_s);
-        ts.push_back(v.truth->target_mm.dot(*axis));
-      }
-    }
-    measured_trace = TrialTrace2(rec + " (measured target)", std::move(mt), std::move(ms));
-    truth_trace = TrialTrace2(rec + " (true target)", std::move(tt), std::move(ts));
-  }
-  std::optional<estimation::TraceInterpolator> measured_at, truth_at;
-  if (measured_trace) measured_at.emplace(*measured_trace);
-  if (truth_trace) truth_at.emplace(*truth_trace);
-
-  if (trace) {
-    for (const TrialVolume& v : vols) {
-      TrialVolumeRow row;
-      row.t_s = v.t_s;
-      row.found = v.detection.found && v.detection.target_found;
-      row.measured = v.measured;
-      row.heartbeat = v.heartbeat;
-      row.tip_mm = TrialArr(v.detection.tip_mm);
-      row.target_mm = TrialArr(v.detection.target_mm);
-      row.axis = TrialArr(v.detection.axis.direction);
-      row.has_truth = v.truth.has_value();
-      if (v.truth) {
-        row.truth_tip_mm = TrialArr(v.truth->tip_mm);
-        row.truth_target_mm = TrialArr(v.truth->target_mm);
-      }
-      row.target_s_mm = axis && v.measured ? v.detection.target_mm.dot(*axis) : TrialNaN();
-      row.truth_target_s_mm =
-          axis && v.truth && v.truth->target_visible ? v.truth->target_mm.dot(*axis) : TrialNaN();
-      row.process_ms = v.process_ms;
-      row.predicted_s_mm = row.measured_later_s_mm = row.truth_later_s_mm = TrialNaN();
-      trace->volumes.push_back(row);
-    }
-  }
-
-  // Prediction: the shipped model at t_i + latency against the measurements (and truth).
-  {
-    TrialRms pm, pt;
-    for (std::size_t i = 0; i < vols.size(); ++i) {
-      const TrialVolume& v = vols[i];
-      if (!v.estimate || !v.measured) continue;
-      // Against the measurements: on the tracker's clock (what it can know).
-      const double tp = v.t_s + request.latency_s;
-      const double pred = v.estimate->motion.Position(tp);
-      double ref = 0.0;
-      const bool scored = v.true_s >= from;
-      if (measured_at && measured_at->At(tp, ref)) {
-        if (scored) pm.Add(pred - ref);
-        if (trace) trace->volumes[i].measured_later_s_mm = ref;
-      }
-      // Against the truth: on the real clock, the servo's.
-      const double tp_true = v.true_s + request.latency_s;
-      if (truth_at && truth_at->At(tp_true, ref)) {
-        if (scored) pt.Add(v.estimate->motion.Position(tp_true) - ref);
-        if (trace) trace->volumes[i].truth_later_s_mm = ref;
-      }
-      if (trace) trace->volumes[i].predicted_s_mm = pred;
-    }
-    if (pm.n > 0) {
-      m[metric::kPredictionRms] = pm.Value();
-    } else {
-      result.notes.push_back(
-          "prediction: nothing to score (no estimate after from_s with a measurement latency_s "
-          "later)");
-    }
-    if (pt.n > 0) m[metric::kPredictionTruthRms] = pt.Value();
-  }
-
-  // The closed loop, re-simulated on the simulated plant at the servo period.
-  const std::size_t first_measured = static_cast<std::size_t>(
-      std::find_if(vols.begin(), vols.end(), [](const TrialVolume& v) { return v.measured; }) -
-      vols.begin());
-  if (request.loop && axis && first_measured < vols.size() && (truth_at || measured_at)) {
-    live::SimCatheter cat =
-        live::MakeSimCatheter(kTrialSheathIdMm, kTrialGuidewireOdMm, request.seed);
-    hw::SimulatedCatheter& plant = *cat.plant;
-    live::ServoNodeOptions so;
-    so.follower = settings.follower;
-    so.auto_enable = true;
-    live::ServoNode servo(plant, settings.servo, std::move(cat.compensator), so, nullptr);
-    const double period = settings.servo.period_s;
-    const double delay = request.delay_s < 0.0 ? request.latency_s : request.delay_s;
-    std::vector<double> tip_hist;  // the plant's true tip, one per cycle
-    auto tip_at = [&](double t) {
-      if (tip_hist.empty()) return plant.truth().tip_mm;
-      const double k = std::floor((t - t0) / period + 1e-9);
-      const std::size_t idx =
-          static_cast<std::size_t>(std::clamp(k, 0.0, static_cast<double>(tip_hist.size() - 1)));
-      return tip_hist[idx];
-    };
-    // The imaged tip: the plant's tip plus the first detection's offset (c0).
-    const double first_tip_s = vols[first_measured].detection.tip_mm.dot(*axis);
-    double c0 = 0.0;
-    bool c0_known = false;
-    // The score's anchor: the true tip of the first frame, else the first detection.
-    const bool truth_anchor = vols.front().truth && vols.front().truth->catheter_visible;
-    const double anchor_s = truth_anchor ? vols.front().truth->tip_mm.dot(*axis) : first_tip_s;
-    const double anchor_x = plant.truth().tip_mm;  // the plant rests until an estimate arrives
-    const std::optional<estimation::TraceInterpolator>& ref_at = truth_at ? truth_at : measured_at;
-    const double standoff = settings.follower.standoff_mm;
-    TrialRms loop;
-    // The servo runtime on simulated time, its estimates fed in process after the imaging
-    // delay: each one's tip is the plant's at its acquisition, as the image would show it.
-    live::DelayedEstimates estimates;
-    live::ServoRuntimeOptions sro;
-    sro.clock = live::ServoClock::kSimulated;
-    sro.t0_s = t0;
-    sro.duration_s = std::max(vols.back().true_s - t0, period);
-    sro.estimates = &estimates;
-    std::size_t next = 0;
-    live::ServoRuntime(servo, sro)
-        .Run(
-            [&](std::uint64_t, double t) {
-              while (next < vols.size() && vols[next].true_s + delay <= t + 1e-12) {
-                const TrialVolume& v = vols[next++];
-                if (!v.estimate) continue;
-                const double x_acq = tip_at(v.true_s);
-                if (!c0_known) {
-                  c0 = first_tip_s - x_acq;
-                  c0_known = true;
-                }
-                link::TargetEstimateSample sample = *v.estimate;
-                sample.publication_time_s = v.true_s + delay;
-                sample.axis = *axis;
-                sample.tip_mm = *axis * (x_acq + c0);
-                estimates.Push(sample, t);
-              }
-            },
-            [&](std::uint64_t k, double t, const live::ServoCycle& c) {
-              const double x = plant.truth().tip_mm;
-              tip_hist.push_back(x);
-              double target_s = 0.0;
-              const bool have_ref = ref_at->At(t, target_s);
-              const double tip_s = anchor_s + (x - anchor_x);
-              if (t >= from && have_ref) loop.Add(tip_s - (target_s - standoff));
-              if (trace && k % kTrialLoopRowEvery == 0)
-                trace->loop.push_back({t, tip_s, have_ref ? target_s - standoff : TrialNaN(),
-                                       c.record.base_mm,
-                                       control::ToString(servo.follower().mode())});
-            });
-    if (servo.stats().limit_violations > 0)
-      result.notes.push_back("loop: " + std::to_string(servo.stats().limit_violations) +
-                             " cycle(s) commanded outside a limit");
-    if (loop.n > 0) {
-      m[metric::kLoopRms] = loop.Value();
-    } else {
-      result.notes.push_back("loop: nothing to score after from_s");
-    }
-  } else if (request.loop) {
-    result.notes.push_back("loop: not simulated (no volume measured)");
-  }
-
-  // EM: the replayed targets against the recording's EM log, as `echoservo report` does.
-  if (!paths.em.empty()) {
-    try {
-      formats::RunRecord run;
-      if (!paths.run_dir.empty()) {
-        run = formats::ReadRunRecord(paths.run_dir);
-      } else {
-        run.dir = paths.volumes.parent_path();
-      }
-      run.targets.clear();
+  void Traces() {
+    if (axis) {
+      std::vector<double> mt, ms, tt, ts;
       for (const TrialVolume& v : vols) {
-        formats::TargetRecord r;
-        r.acquired_s = r.arrived_s = r.published_s = v.t_s;
-        r.found = v.measured;
         if (v.measured) {
-          r.target_mm = v.detection.target_mm;
-          r.tip_mm = v.detection.tip_mm;
-          r.axis = v.detection.axis.direction;
+          mt.push_back(v.t_s);
+          ms.push_back(v.detection.target_mm.dot(*axis));
         }
-        r.confidence = v.detection.confidence;
-        run.targets.push_back(r);
+        if (v.truth && v.truth->target_visible) {
+          tt.push_back(v.true_s);
+          ts.push_back(v.truth->target_mm.dot(*axis));
+        }
       }
-      run.truth.clear();
-      run.has_truth = false;  // score the replayed targets, not the live run's truth
-      const formats::EmLog em = imaging::ReadEmLog(paths.em, {});
-      report::AccuracyOptions ao;
-      ao.from_s = from;
-      ao.from_reason = "from_s";
-      if (const auto& e2i = run.info.meta.em_to_image) {
-        ao.alignment.em_to_image = *e2i;
-        ao.transform_source = "run.json";
+      measured_trace = TrialTrace2(rec + " (measured target)", std::move(mt), std::move(ms));
+      truth_trace = TrialTrace2(rec + " (true target)", std::move(tt), std::move(ts));
+    }
+    if (measured_trace) measured_at.emplace(*measured_trace);
+    if (truth_trace) truth_at.emplace(*truth_trace);
+  }
+
+  void Rows() {
+    if (trace) {
+      for (const TrialVolume& v : vols) {
+        TrialVolumeRow row;
+        row.t_s = v.t_s;
+        row.found = v.detection.found && v.detection.target_found;
+        row.measured = v.measured;
+        row.heartbeat = v.heartbeat;
+        row.tip_mm = TrialArr(v.detection.tip_mm);
+        row.target_mm = TrialArr(v.detection.target_mm);
+        row.axis = TrialArr(v.detection.axis.direction);
+        row.has_truth = v.truth.has_value();
+        if (v.truth) {
+          row.truth_tip_mm = TrialArr(v.truth->tip_mm);
+          row.truth_target_mm = TrialArr(v.truth->target_mm);
+        }
+        row.target_s_mm = axis && v.measured ? v.detection.target_mm.dot(*axis) : TrialNaN();
+        row.truth_target_s_mm =
+            axis && v.truth && v.truth->target_visible ? v.truth->target_mm.dot(*axis) : TrialNaN();
+        row.process_ms = v.process_ms;
+        row.predicted_s_mm = row.measured_later_s_mm = row.truth_later_s_mm = TrialNaN();
+        trace->volumes.push_back(row);
       }
-      m[metric::kEmRms] = report::ComputeAccuracy(run, em, ao).rms_mm;
-    } catch (const std::invalid_argument& e) {
-      result.notes.push_back(std::string("em: not scored: ") + e.what());
     }
   }
+
+  void Prediction() {
+    // Prediction: the shipped model at t_i + latency against the measurements (and truth).
+    {
+      TrialRms pm, pt;
+      for (std::size_t i = 0; i < vols.size(); ++i) {
+        const TrialVolume& v = vols[i];
+        if (!v.estimate || !v.measured) continue;
+        // Against the measurements: on the tracker's clock (what it can know).
+        const double tp = v.t_s + request.latency_s;
+        const double pred = v.estimate->motion.Position(tp);
+        double ref = 0.0;
+        const bool scored = v.true_s >= from;
+        if (measured_at && measured_at->At(tp, ref)) {
+          if (scored) pm.Add(pred - ref);
+          if (trace) trace->volumes[i].measured_later_s_mm = ref;
+        }
+        // Against the truth: on the real clock, the servo's.
+        const double tp_true = v.true_s + request.latency_s;
+        if (truth_at && truth_at->At(tp_true, ref)) {
+          if (scored) pt.Add(v.estimate->motion.Position(tp_true) - ref);
+          if (trace) trace->volumes[i].truth_later_s_mm = ref;
+        }
+        if (trace) trace->volumes[i].predicted_s_mm = pred;
+      }
+      if (pm.n > 0) {
+        m[metric::kPredictionRms] = pm.Value();
+      } else {
+        result.notes.push_back(
+            "prediction: nothing to score (no estimate after from_s with a measurement latency_s "
+            "later)");
+      }
+      if (pt.n > 0) m[metric::kPredictionTruthRms] = pt.Value();
+    }
+  }
+
+  void Loop() {
+    // The closed loop, re-simulated on the simulated plant at the servo period.
+    const std::size_t first_measured = static_cast<std::size_t>(
+        std::find_if(vols.begin(), vols.end(), [](const TrialVolume& v) { return v.measured; }) -
+        vols.begin());
+    if (request.loop && axis && first_measured < vols.size() && (truth_at || measured_at)) {
+      live::SimCatheter cat =
+          live::MakeSimCatheter(kTrialSheathIdMm, kTrialGuidewireOdMm, request.seed);
+      hw::SimulatedCatheter& plant = *cat.plant;
+      live::ServoNodeOptions so;
+      so.follower = settings.follower;
+      so.auto_enable = true;
+      live::ServoNode servo(plant, settings.servo, std::move(cat.compensator), so, nullptr);
+      const double period = settings.servo.period_s;
+      const double delay = request.delay_s < 0.0 ? request.latency_s : request.delay_s;
+      std::vector<double> tip_hist;  // the plant's true tip, one per cycle
+      auto tip_at = [&](double t) {
+        if (tip_hist.empty()) return plant.truth().tip_mm;
+        const double k = std::floor((t - t0) / period + 1e-9);
+        const std::size_t idx =
+            static_cast<std::size_t>(std::clamp(k, 0.0, static_cast<double>(tip_hist.size() - 1)));
+        return tip_hist[idx];
+      };
+      // The imaged tip: the plant's tip plus the first detection's offset (c0).
+      const double first_tip_s = vols[first_measured].detection.tip_mm.dot(*axis);
+      double c0 = 0.0;
+      bool c0_known = false;
+      // The score's anchor: the true tip of the first frame, else the first detection.
+      const bool truth_anchor = vols.front().truth && vols.front().truth->catheter_visible;
+      const double anchor_s = truth_anchor ? vols.front().truth->tip_mm.dot(*axis) : first_tip_s;
+      const double anchor_x = plant.truth().tip_mm;  // the plant rests until an estimate arrives
+      const std::optional<estimation::TraceInterpolator>& ref_at =
+          truth_at ? truth_at : measured_at;
+      const double standoff = settings.follower.standoff_mm;
+      TrialRms loop;
+      // The servo runtime on simulated time, its estimates fed in process after the imaging
+      // delay: each one's tip is the plant's at its acquisition, as the image would show it.
+      live::DelayedEstimates estimates;
+      live::ServoRuntimeOptions sro;
+      sro.clock = live::ServoClock::kSimulated;
+      sro.t0_s = t0;
+      sro.duration_s = std::max(vols.back().true_s - t0, period);
+      sro.estimates = &estimates;
+      std::size_t next = 0;
+      live::ServoRuntime(servo, sro)
+          .Run(
+              [&](std::uint64_t, double t) {
+                while (next < vols.size() && vols[next].true_s + delay <= t + 1e-12) {
+                  const TrialVolume& v = vols[next++];
+                  if (!v.estimate) continue;
+                  const double x_acq = tip_at(v.true_s);
+                  if (!c0_known) {
+                    c0 = first_tip_s - x_acq;
+                    c0_known = true;
+                  }
+                  link::TargetEstimateSample sample = *v.estimate;
+                  sample.publication_time_s = v.true_s + delay;
+                  sample.axis = *axis;
+                  sample.tip_mm = *axis * (x_acq + c0);
+                  estimates.Push(sample, t);
+                }
+              },
+              [&](std::uint64_t k, double t, const live::ServoCycle& c) {
+                const double x = plant.truth().tip_mm;
+                tip_hist.push_back(x);
+                double target_s = 0.0;
+                const bool have_ref = ref_at->At(t, target_s);
+                const double tip_s = anchor_s + (x - anchor_x);
+                if (t >= from && have_ref) loop.Add(tip_s - (target_s - standoff));
+                if (trace && k % kTrialLoopRowEvery == 0)
+                  trace->loop.push_back({t, tip_s, have_ref ? target_s - standoff : TrialNaN(),
+                                         c.record.base_mm,
+                                         control::ToString(servo.follower().mode())});
+              });
+      if (servo.stats().limit_violations > 0)
+        result.notes.push_back("loop: " + std::to_string(servo.stats().limit_violations) +
+                               " cycle(s) commanded outside a limit");
+      if (loop.n > 0) {
+        m[metric::kLoopRms] = loop.Value();
+      } else {
+        result.notes.push_back("loop: nothing to score after from_s");
+      }
+    } else if (request.loop) {
+      result.notes.push_back("loop: not simulated (no volume measured)");
+    }
+  }
+
+  void Em() {
+    // EM: the replayed targets against the recording's EM log, as `echoservo report` does.
+    if (!paths.em.empty()) {
+      try {
+        formats::RunRecord run;
+        if (!paths.run_dir.empty()) {
+          run = formats::ReadRunRecord(paths.run_dir);
+        } else {
+          run.dir = paths.volumes.parent_path();
+        }
+        run.targets.clear();
+        for (const TrialVolume& v : vols) {
+          formats::TargetRecord r;
+          r.acquired_s = r.arrived_s = r.published_s = v.t_s;
+          r.found = v.measured;
+          if (v.measured) {
+            r.target_mm = v.detection.target_mm;
+            r.tip_mm = v.detection.tip_mm;
+            r.axis = v.detection.axis.direction;
+          }
+          r.confidence = v.detection.confidence;
+          run.targets.push_back(r);
+        }
+        run.truth.clear();
+        run.has_truth = false;  // score the replayed targets, not the live run's truth
+        const formats::EmLog em = imaging::ReadEmLog(paths.em, {});
+        report::AccuracyOptions ao;
+        ao.from_s = from;
+        ao.from_reason = "from_s";
+        if (const auto& e2i = run.info.meta.em_to_image) {
+          ao.alignment.em_to_image = *e2i;
+          ao.transform_source = "run.json";
+        }
+        m[metric::kEmRms] = report::ComputeAccuracy(run, em, ao).rms_mm;
+      } catch (const std::invalid_argument& e) {
+        result.notes.push_back(std::string("em: not scored: ") + e.what());
+      }
+    }
+  }
+};
+
+}  // namespace
+
+TrialResult RunTrial(const TrialRequest& request) { return RunTrial(request, nullptr); }
+
+TrialResult RunTrial(const TrialRequest& request, TrialTrace* trace) {
+  request.Validate();
+  const auto start = Clock::now();
+  const std::string& rec = request.recording;
+  const TrialPaths paths = TrialResolve(rec, request.em_log);
+  live::PipelineSettings settings = live::DefaultSettings();
+  settings.tracker.prediction_latency_s = request.latency_s;  // unless a setting says otherwise
+  try {
+    live::Apply(request.settings, settings);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("trial settings: ") + e.what());
+  }
+  TrialResult result;
+  std::optional<Eigen::Vector3d> axis;
+  const std::vector<TrialVolume> vols = TrialReplay(request, settings, paths, start, result, axis);
+  const auto replayed = Clock::now();
+  TrialScorer scorer{request, settings, paths, vols, axis, result, trace};
+  scorer.FoundAndLatency();
+  scorer.Detection();
+  scorer.Traces();
+  scorer.Rows();
+  scorer.Prediction();
+  scorer.Loop();
+  scorer.Em();
+  auto& m = result.metrics;
   for (auto it = m.begin(); it != m.end();)
     it = std::isfinite(it->second) ? std::next(it) : m.erase(it);
   result.score_s = TrialSeconds(replayed, Clock::now());

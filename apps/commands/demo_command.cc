@@ -51,7 +51,7 @@ void RunDemoCommand(const DemoArgs& a) {
   o.slow_reads = ToSlowReads(a.rt);
   if (!a.json) o.log = [](const std::string& line) { std::cerr << "demo: " << line << "\n"; };
   // --em-connect: the live EM stream replaces the simulated EM tracker in em.csv.
-  EmConnection em(a.em, "demo");
+  live::EmStreamRecorder em(a.em, "demo");
   if (em.enabled()) {
     o.external_em = [&em](formats::RunWriter* writer) {
       em.Start(writer);

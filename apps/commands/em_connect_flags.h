@@ -1,61 +1,17 @@
-// `--em-connect HOST:PORT [--em-tool NAME]` of `track` and `demo`: live EM tracking from a
-// PLUS server (imaging/igtl/em_stream.h) into the RUN's em.csv (formats::RunWriter::AddEm: the
-// EM tracker's clock, s since the Unix epoch, and frame, mm), with the client's counts in
-// RUN/em_stream.json and `--json`'s em_stream.
-// Errors: a malformed HOST:PORT or a tool name over 20 bytes throws std::invalid_argument
-// naming the flag; at run time nothing throws — connection failures, bad messages and an
-// ambiguous tool are logged on stderr and counted, and the run goes on without EM data.
-// Details: docs/report.md#live-em-tracking-from-plus
+// `--em-connect HOST:PORT [--em-tool NAME]` of `track` and `demo`: the flags of the run's live
+// EM stream, a library component (live/em_stream_recorder.h: live::EmStreamRecorder, whose
+// options the flags fill). Details: docs/report.md#live-em-tracking-from-plus
 #pragma once
 
-#include <filesystem>
-#include <memory>
-#include <string>
+#include "live/em_stream_recorder.h"
 
 namespace CLI {
 class App;
 }
-namespace echoservo::formats {
-class RunWriter;
-}
-namespace echoservo::imaging::openigtlink {
-class EmStreamClient;
-}
 
 namespace echoservo::apps {
 
-struct EmConnectFlags {
-  std::string connect;  // HOST:PORT; empty: no live EM stream
-  std::string tool;     // --em-tool; empty: the only tool streaming
-};
-
+using EmConnectFlags = live::EmStreamOptions;
 void AddEmConnectFlags(CLI::App& cmd, EmConnectFlags& flags);
-
-// The live EM stream of one run. Construct it before the run starts (the flags are checked
-// there), Start it with the RUN writer, Stop it before the writer goes.
-class EmConnection {
- public:
-  // `command` prefixes the log lines ("track", "demo"). Throws std::invalid_argument.
-  EmConnection(const EmConnectFlags& flags, std::string command);
-  ~EmConnection();
-  EmConnection(const EmConnection&) = delete;
-  EmConnection& operator=(const EmConnection&) = delete;
-
-  bool enabled() const { return !flags_.connect.empty(); }
-  // Connects in the background; each accepted sample goes to writer->AddEm (writer may be
-  // null: counted only). Nothing when !enabled().
-  void Start(formats::RunWriter* writer);
-  void Stop();  // idempotent
-  // After Stop: the counts as a JSON object text ("null" when !enabled()), also written to
-  // out_dir/em_stream.json when out_dir is not empty, and a summary line on stderr.
-  std::string Finish(const std::filesystem::path& out_dir);
-
- private:
-  EmConnectFlags flags_;
-  std::string command_;
-  std::string host_;
-  int port_ = 0;
-  std::unique_ptr<imaging::openigtlink::EmStreamClient> client_;
-};
 
 }  // namespace echoservo::apps

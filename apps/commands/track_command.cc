@@ -248,7 +248,7 @@ void RunTrack(const TrackArgs& a) {
     throw std::invalid_argument("track --save-volumes: a replay is recorded already");
   if (!a.em.connect.empty() && replay)
     throw std::invalid_argument("track --em-connect: a replay is offline (use its RUN's em.csv)");
-  EmConnection em(a.em, "track");
+  live::EmStreamRecorder em(a.em, "track");
   // --igtl-serve: each processed volume to the OpenIGTLink viewers (docs/slicer.md), stamped
   // with its acquisition time on the system clock.
   IgtlServe igtl(a.igtl, "track");
@@ -266,7 +266,7 @@ void RunTrack(const TrackArgs& a) {
     writer = std::make_unique<formats::RunWriter>(a.out, TrackRunInfo(a, settings));
   // The EM stream writes to `writer`: stopped before the writer goes, however this is left.
   struct StopEm {
-    EmConnection& em;
+    live::EmStreamRecorder& em;
     ~StopEm() { em.Stop(); }
   } stop_em{em};
   em.Start(writer.get());

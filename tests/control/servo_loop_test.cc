@@ -111,7 +111,7 @@ TEST(ServoLoopTest, NeverCommandsAForceBeyondTheLimit) {
     // Factor 4: the PID may ask for more than the limiter allows; the limiter clamps
     // and counts each clamp as a force fault.
     ServoConfig config = seed;
-    config.pid.kp_n_per_mm = 500.0;
+    config.pid.kp_n_per_mm = params::kKpNPerMm.max;  // the stiffest gain a catheter may have
     config.pid.output_limit_n = pid_limit_factor * config.limits.max_force_n;
     Rig rig(square, config, false);
     NoCompensation none;
