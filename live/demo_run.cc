@@ -276,6 +276,90 @@ class DemoServoBook {
   std::uint64_t latency_out_of_order_ = 0;
 };
 
+// The tracker runtime on its own thread: the simulated scanner → node → link, RUN, recorder,
+// and the demo's sink. However the demo is left, the thread is stopped and joined first.
+struct DemoTracker {
+  static TrackerRuntimeOptions Options(const DemoOptions& o, const PipelineSettings& settings,
+                                       const PipelineClock& clock, link::TargetPublisher& pub,
+                                       formats::RunWriter* writer, DemoTrackerSink& sink) {
+    TrackerRuntimeOptions tro;
+    tro.node = settings.tracker;
+    tro.node.link_offset_s = clock.link_offset_s();
+    tro.publisher = &pub;
+    tro.writer = writer;
+    if (o.save_volumes) tro.record_to = o.out_dir / "volumes.igs.mhd";
+    tro.record_queue_volumes = o.record_queue_volumes;
+    tro.log = [log = sink.log](const std::string& s) {
+      if (log) log("tracker: " + s);
+    };
+    const double unix_offset_s = clock.link_offset_s();
+    tro.on_tracked = [&sink, unix_offset_s](const TrackedVolume& r, const SourceVolume& v, double) {
+      sink(r, v, unix_offset_s);
+    };
+    return tro;
+  }
+  DemoTracker(const DemoOptions& o, const PipelineSettings& settings, SimScene& scene,
+              const PipelineClock& clock, link::TargetPublisher& pub, formats::RunWriter* writer,
+              DemoTrackerSink& sink)
+      : runtime(Options(o, settings, clock, pub, writer, sink)),
+        scanner(scene, clock, {o.rate_hz, o.delay_min_s, o.delay_max_s, o.duration_s, o.seed}),
+        thread([this] { result = runtime.Run(scanner); }) {}
+  ~DemoTracker() {
+    scanner.Stop();
+    if (thread.joinable()) thread.join();
+  }
+  // Stops the scanner, waits for the runtime (the recording closed) and returns its result.
+  TrackerRunResult Finish() {
+    scanner.Stop();
+    if (thread.joinable()) thread.join();
+    return result;
+  }
+  TrackerRuntime runtime;
+  SimScannerSource scanner;
+  TrackerRunResult result;
+  std::thread thread;
+};
+
+// The DDS link, loopback only; samples carry the system clock: pipeline + link_offset_s.
+struct DemoLink {
+  static link::ParticipantOptions Options(const DemoOptions& o, const std::string& role) {
+    link::ParticipantOptions po;
+    po.domain_id = o.dds_domain;
+    po.loopback_only = true;
+    po.name = "echoservo_demo_" + role;
+    if (!o.secure_dir.empty()) po.properties = SecureProperties(o.secure_dir, role);
+    return po;
+  }
+  explicit DemoLink(const DemoOptions& o)
+      : tracker(Options(o, "tracker")), servo(Options(o, "servo")), target_pub(tracker) {}
+  link::Participant tracker, servo;
+  link::TargetPublisher target_pub;
+};
+
+// The servo: the simulated catheter, read through a slow driver on purpose (slow_reads).
+struct DemoServo {
+  DemoServo(const DemoOptions& o, const PipelineSettings& settings, const PipelineClock& clock,
+            link::Participant& participant)
+      : catheter(MakeSimCatheter(o.sheath_id_mm, o.guidewire_od_mm, o.seed)),
+        options([&] {
+          ServoNodeOptions so;
+          so.follower = settings.follower;
+          so.auto_enable = true;  // the demo resumes by itself; a clinic waits for ENABLE
+          so.link_offset_s = clock.link_offset_s();
+          so.watchdog = o.watchdog;
+          return so;
+        }()),
+        slow_hw(o.slow_reads.empty()
+                    ? nullptr
+                    : std::make_unique<hw::FaultInjectingHardware>(*catheter.plant, o.slow_reads)),
+        node(slow_hw ? static_cast<hw::HardwareInterface&>(*slow_hw) : *catheter.plant,
+             settings.servo, std::move(catheter.compensator), options, &participant) {}
+  SimCatheter catheter;
+  ServoNodeOptions options;
+  std::unique_ptr<hw::FaultInjectingHardware> slow_hw;
+  ServoNode node;
+};
+
 // The RUN directory's run.json (formats/run_record.h): the typed metadata of this run.
 formats::RunInfo DemoRunInfo(const DemoOptions& o, const PipelineSettings& settings,
                              const SimScene& scene, const PipelineClock& clock) {
@@ -354,63 +438,19 @@ DemoResult RunDemo(const DemoOptions& o) {
   } external_em;
   if (o.external_em) external_em.stop = o.external_em(writer.get());
 
-  // The DDS link, loopback only; samples carry the system clock: pipeline + link_offset_s.
-  link::ParticipantOptions po;
-  po.domain_id = o.dds_domain;
-  po.loopback_only = true;
-  po.name = "echoservo_demo_tracker";
-  if (!o.secure_dir.empty()) po.properties = SecureProperties(o.secure_dir, "tracker");
-  link::Participant tracker_participant(po);
-  po.name = "echoservo_demo_servo";
-  if (!o.secure_dir.empty()) po.properties = SecureProperties(o.secure_dir, "servo");
-  link::Participant servo_participant(po);
-  link::TargetPublisher target_pub(tracker_participant);
-
-  // The servo: the simulated catheter, read through a slow driver on purpose (slow_reads).
-  SimCatheter catheter = MakeSimCatheter(o.sheath_id_mm, o.guidewire_od_mm, o.seed);
-  catheter.servo = settings.servo;
-  hw::SimulatedCatheter& plant = *catheter.plant;
-  ServoNodeOptions so;
-  so.follower = settings.follower;
-  so.auto_enable = true;  // the demo resumes by itself; a clinic waits for ENABLE
-  so.link_offset_s = clock.link_offset_s();
-  so.watchdog = o.watchdog;
-  std::optional<hw::FaultInjectingHardware> slow_hw;
-  if (!o.slow_reads.empty()) slow_hw.emplace(plant, o.slow_reads);
-  hw::HardwareInterface& servo_hw = slow_hw ? static_cast<hw::HardwareInterface&>(*slow_hw) : plant;
-  ServoNode servo(servo_hw, catheter.servo, std::move(catheter.compensator), so,
-                  &servo_participant);
+  DemoLink dds(o);
+  DemoServo servo_side(o, settings, clock, dds.servo);
+  ServoNode& servo = servo_side.node;
+  hw::SimulatedCatheter& plant = *servo_side.catheter.plant;
+  const ServoNodeOptions& so = servo_side.options;
+  link::TargetPublisher& target_pub = dds.target_pub;
   target_pub.WaitForSubscribers(1, 5.0);
 
   // The tracker runtime on its own thread: the simulated scanner → node → link, RUN, recorder.
   Arrivals arrivals;
   DemoTrackerSink sink{o, scene, arrivals, log};
-  TrackerRuntimeOptions tro;
-  tro.node = settings.tracker;
-  tro.node.link_offset_s = clock.link_offset_s();
-  tro.publisher = &target_pub;
-  tro.writer = writer.get();
-  if (o.save_volumes) tro.record_to = o.out_dir / "volumes.igs.mhd";
-  tro.record_queue_volumes = o.record_queue_volumes;
-  tro.log = [&log](const std::string& s) { log("tracker: " + s); };
-  const double unix_offset_s = clock.link_offset_s();
-  tro.on_tracked = [&sink, unix_offset_s](const TrackedVolume& r, const SourceVolume& v, double) {
-    sink(r, v, unix_offset_s);
-  };
-  TrackerRuntime tracker(tro);
-  SimScannerSource scanner(scene, clock,
-                           {o.rate_hz, o.delay_min_s, o.delay_max_s, o.duration_s, o.seed});
-  TrackerRunResult tracked;
-  std::thread tracker_thread([&] { tracked = tracker.Run(scanner); });
-  // However this function is left, the tracker thread is stopped and joined first.
-  struct TrackerJoin {
-    SimScannerSource& scanner;
-    std::thread& thread;
-    ~TrackerJoin() {
-      scanner.Stop();
-      if (thread.joinable()) thread.join();
-    }
-  } tracker_join{scanner, tracker_thread};
+  DemoTracker tracker(o, settings, scene, clock, target_pub, writer.get(), sink);
+  SimScannerSource& scanner = tracker.scanner;
 
   // The servo's RUN rows go to the disk from a thread of their own (created before the servo
   // thread is raised to real time), then the servo runtime on this thread.
@@ -422,20 +462,20 @@ DemoResult RunDemo(const DemoOptions& o) {
   sro.realtime = o.realtime;
   sro.duration_s = o.duration_s;
   DemoResult result;
-  const ServoRunResult sr = ServoRuntime(servo, sro)
-                                .Run(
-                                    nullptr,
-                                    [&](std::uint64_t k, double t, const ServoCycle& c) {
-                                      book.Cycle(k, t, c, clock, scanner.counts().acquired,
-                                                 tracker.node().stats().measured);
-                                    },
-                                    [&log](const control::RealtimeStatus& rt) {
-                                      for (const std::string& r : rt.refusals)
-                                        log("real time: " + r);
-                                      log("real time: " + rt.Summary());
-                                    });
-  scanner.Stop();
-  tracker_thread.join();
+  const ServoRunResult sr =
+      ServoRuntime(servo, sro)
+          .Run(
+              nullptr,
+              [&](std::uint64_t k, double t, const ServoCycle& c) {
+                // The progress line's counts: atomics (the node's own stats are the tracker
+                // thread's).
+                book.Cycle(k, t, c, clock, scanner.counts().acquired, sink.target_found.load());
+              },
+              [&log](const control::RealtimeStatus& rt) {
+                for (const std::string& r : rt.refusals) log("real time: " + r);
+                log("real time: " + rt.Summary());
+              });
+  const TrackerRunResult tracked = tracker.Finish();
   servo.WaitStatesPublished(1.0);  // the publisher thread's last state, counted
   rows.Stop();                     // the servo's rows on disk (and flushed)
   if (!rows.error().empty())
@@ -451,8 +491,8 @@ DemoResult RunDemo(const DemoOptions& o) {
   result.timing = sr.timing;
   FillDemoCounts(servo, tracked, sink, result);
   book.Fill(result);
-  result.ekf_harmonics = tracker.node().ekf().harmonics();
-  result.ekf_rate_hz = tracker.node().ekf().rate_hz();
+  result.ekf_harmonics = tracker.runtime.node().ekf().harmonics();
+  result.ekf_rate_hz = tracker.runtime.node().ekf().rate_hz();
   result.timing_json = ServoTimingJson(result.realtime, result.timing, so.watchdog,
                                        result.deadline_holds, result.deadline_retracts);
   if (!o.out_dir.empty())

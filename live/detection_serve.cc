@@ -9,7 +9,8 @@
 
 namespace echoservo::live {
 
-DetectionServe::DetectionServe(const DetectionServeOptions& f, const std::string& command) : command_(command) {
+DetectionServe::DetectionServe(const DetectionServeOptions& f, const std::string& command)
+    : command_(command) {
   if (f.port < 0) {
     if (f.volumes)
       throw std::invalid_argument(command + " --igtl-volumes: needs --igtl-serve PORT");
@@ -40,7 +41,7 @@ DetectionServe::~DetectionServe() = default;
 int DetectionServe::port() const { return server_ ? server_->port() : -1; }
 
 void DetectionServe::OnTracked(const TrackedVolume& r, const imaging::Volume& volume,
-                          double acquired_unix_s) {
+                               double acquired_unix_s) {
   if (!server_) return;
   imaging::openigtlink::DetectionSample s;
   s.acquired_unix_s = acquired_unix_s;

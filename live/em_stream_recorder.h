@@ -27,7 +27,6 @@ struct EmStreamOptions {
   std::string tool;     // --em-tool; empty: the only tool streaming
 };
 
-
 // The live EM stream of one run. Construct it before the run starts (the flags are checked
 // there), Start it with the RUN writer, Stop it before the writer goes.
 class EmStreamRecorder {

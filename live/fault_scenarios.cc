@@ -142,9 +142,8 @@ FaultScenarioResult Run(const Scenario& sc) {
 
 bool InWindow(double t, double end_s) { return t >= kFaultStartS && t < end_s; }
 
-}  // namespace
-
-std::vector<FaultScenarioResult> RunFaultScenarios(std::uint64_t seed) {
+// The scenarios, each fault on the servo node from 4 s on (seed: the loss-and-delay draws).
+std::vector<Scenario> FaultScenarioList(std::uint64_t seed) {
   std::vector<Scenario> all;
   {
     Scenario s{"tracker_killed", "no estimate after 4 s (the tracker process killed)"};
@@ -246,8 +245,14 @@ std::vector<FaultScenarioResult> RunFaultScenarios(std::uint64_t seed) {
     };
     all.push_back(s);
   }
+  return all;
+}
+
+}  // namespace
+
+std::vector<FaultScenarioResult> RunFaultScenarios(std::uint64_t seed) {
   std::vector<FaultScenarioResult> out;
-  for (const Scenario& s : all) out.push_back(Run(s));
+  for (const Scenario& s : FaultScenarioList(seed)) out.push_back(Run(s));
   return out;
 }
 

@@ -42,58 +42,11 @@ struct DemoArgs {
   SetFlags set;         // --set NAME=VALUE (live/pipeline_parameters.h), over the flags
 };
 
-void RunDemoCommand(const DemoArgs& a) {
-  live::DemoOptions o = a.options;
-  o.settings = a.set.Parsed();  // over --standoff, --harmonics (live::DemoSettings)
-  o.out_dir = a.out;
-  o.realtime = ToRealtimeOptions(a.rt);
-  o.watchdog = ToWatchdogConfig(a.rt, 1e-3);  // the simulated catheter's 1 kHz servo
-  o.slow_reads = ToSlowReads(a.rt);
-  if (!a.json) o.log = [](const std::string& line) { std::cerr << "demo: " << line << "\n"; };
-  // --em-connect: the live EM stream replaces the simulated EM tracker in em.csv.
-  live::EmStreamRecorder em(a.em, "demo");
-  if (em.enabled()) {
-    o.external_em = [&em](formats::RunWriter* writer) {
-      em.Start(writer);
-      return std::function<void()>([&em] { em.Stop(); });
-    };
-  }
-  // --igtl-serve: each tracked volume to the OpenIGTLink viewers (docs/slicer.md), stamped
-  // with its acquisition time on the system clock (the pipeline clock's offset, see demo_run.h).
-  IgtlServe igtl(a.igtl, "demo");
-  if (igtl.enabled()) {
-    o.on_tracked = [&igtl](const live::TrackedVolume& t, const imaging::Volume& v,
-                           double acquired_unix_s) { igtl.OnTracked(t, v, acquired_unix_s); };
-  }
-  const live::DemoResult r = live::RunDemo(o);
-  const nlohmann::json igtl_serve = nlohmann::json::parse(igtl.Finish());
-  const nlohmann::json em_stream = nlohmann::json::parse(em.Finish(a.out));
-  // The baseline in the same process: the same run (seed, scene, catheter) with the tracker
-  // publishing a zero-order hold of its newest measurement instead of the EKF's prediction.
-  // The run's report, as `echoservo report RUN --from <metrics start>` writes it.
-  std::optional<double> report_rms_mm;
-  std::string report_error;
-  if (!a.out.empty()) {
-    try {
-      report_rms_mm =
-          WriteRunReport(a.out, (fs::path(a.out) / "report.html").string(), o.metrics_start_s);
-    } catch (
-        const std::exception& e) {  // the run is written either way; say why there is no report
-      report_error = e.what();
-      std::fprintf(stderr, "demo: no report for %s: %s\n", a.out.c_str(), e.what());
-    }
-  }
-  std::optional<live::DemoResult> zoh;
-  if (a.baseline) {
-    live::DemoOptions b = o;
-    b.zero_order_hold = true;
-    b.out_dir.clear();
-    b.save_volumes = false;
-    b.external_em = nullptr;
-    b.on_tracked = nullptr;
-    if (o.log) o.log("baseline: the same run with a zero-order hold instead of the EKF");
-    zoh = live::RunDemo(b);
-  }
+// The demo's figures: JSON (--json) or lines, the baseline's and the report's with them.
+void PrintDemoResult(const DemoArgs& a, const live::DemoResult& r,
+                     const std::optional<live::DemoResult>& zoh,
+                     const std::optional<double>& report_rms_mm, const std::string& report_error,
+                     const nlohmann::json& igtl_serve, const nlohmann::json& em_stream) {
   if (a.json) {
     const nlohmann::json j = {
         {"tip_to_target_rms_mm", r.tip_to_target_rms_mm},
@@ -207,6 +160,61 @@ void RunDemoCommand(const DemoArgs& a) {
                 a.out.c_str(), *report_rms_mm);
   else if (!a.out.empty())
     std::printf("run written to %s (no report: %s)\n", a.out.c_str(), report_error.c_str());
+}
+
+void RunDemoCommand(const DemoArgs& a) {
+  live::DemoOptions o = a.options;
+  o.settings = a.set.Parsed();  // over --standoff, --harmonics (live::DemoSettings)
+  o.out_dir = a.out;
+  o.realtime = ToRealtimeOptions(a.rt);
+  o.watchdog = ToWatchdogConfig(a.rt, 1e-3);  // the simulated catheter's 1 kHz servo
+  o.slow_reads = ToSlowReads(a.rt);
+  if (!a.json) o.log = [](const std::string& line) { std::cerr << "demo: " << line << "\n"; };
+  // --em-connect: the live EM stream replaces the simulated EM tracker in em.csv.
+  live::EmStreamRecorder em(a.em, "demo");
+  if (em.enabled()) {
+    o.external_em = [&em](formats::RunWriter* writer) {
+      em.Start(writer);
+      return std::function<void()>([&em] { em.Stop(); });
+    };
+  }
+  // --igtl-serve: each tracked volume to the OpenIGTLink viewers (docs/slicer.md), stamped
+  // with its acquisition time on the system clock (the pipeline clock's offset, see demo_run.h).
+  IgtlServe igtl(a.igtl, "demo");
+  if (igtl.enabled()) {
+    o.on_tracked = [&igtl](const live::TrackedVolume& t, const imaging::Volume& v,
+                           double acquired_unix_s) { igtl.OnTracked(t, v, acquired_unix_s); };
+  }
+  const live::DemoResult r = live::RunDemo(o);
+  const nlohmann::json igtl_serve = nlohmann::json::parse(igtl.Finish());
+  const nlohmann::json em_stream = nlohmann::json::parse(em.Finish(a.out));
+  // The baseline in the same process: the same run (seed, scene, catheter) with the tracker
+  // publishing a zero-order hold of its newest measurement instead of the EKF's prediction.
+  // The run's report, as `echoservo report RUN --from <metrics start>` writes it.
+  std::optional<double> report_rms_mm;
+  std::string report_error;
+  if (!a.out.empty()) {
+    try {
+      report_rms_mm =
+          WriteRunReport(a.out, (fs::path(a.out) / "report.html").string(), o.metrics_start_s);
+    } catch (
+        const std::exception& e) {  // the run is written either way; say why there is no report
+      report_error = e.what();
+      std::fprintf(stderr, "demo: no report for %s: %s\n", a.out.c_str(), e.what());
+    }
+  }
+  std::optional<live::DemoResult> zoh;
+  if (a.baseline) {
+    live::DemoOptions b = o;
+    b.zero_order_hold = true;
+    b.out_dir.clear();
+    b.save_volumes = false;
+    b.external_em = nullptr;
+    b.on_tracked = nullptr;
+    if (o.log) o.log("baseline: the same run with a zero-order hold instead of the EKF");
+    zoh = live::RunDemo(b);
+  }
+  PrintDemoResult(a, r, zoh, report_rms_mm, report_error, igtl_serve, em_stream);
 }
 
 }  // namespace
