@@ -77,10 +77,10 @@ void CheckTraceFile(const std::string& path) {
     throw std::invalid_argument(path + ": not a regular file; " + kExpected);
 }
 
-void RunPredict(const PredictFlags& f) {
-  estimation::MotionTrace trace;
-  estimation::MotionTrace truth;
-  estimation::PredictionRunOptions o;
+// The trace to predict and its reference: a file's columns, or a generated realistic trace
+// (--realistic); o.truth points at `truth` when one is asked for.
+void LoadPredictTraces(const PredictFlags& f, estimation::MotionTrace& trace,
+                       estimation::MotionTrace& truth, estimation::PredictionRunOptions& o) {
   if (!f.realistic.empty()) {
     if (!f.trace.empty())
       throw std::invalid_argument("predict: give either TRACE or --realistic CLASS, not both");
@@ -104,23 +104,11 @@ void RunPredict(const PredictFlags& f) {
       o.truth = &truth;
     }
   }
-  if (f.combination == "weighted") {
-    o.combination = estimation::Combination::kWeighted;
-  } else if (f.combination != "best") {
-    throw std::invalid_argument("--combination must be 'best' or 'weighted', not '" +
-                                f.combination + "'");
-  }
-  o.latency_s = f.latency_s;
-  o.measurement_rate_hz = f.rate_hz;
-  o.ekf.harmonics = ParseHarmonics(f.harmonics);
-  o.ekf.respiration = f.respiration      ? estimation::Respiration::kOn
-                      : f.no_respiration ? estimation::Respiration::kOff
-                                         : estimation::Respiration::kAuto;
-  o.ekf.noise_mm = f.noise_mm;
-  o.ekf.init_window_s = f.init_window_s;
-  o.ekf.min_rate_hz = f.min_hz;
-  o.ekf.max_rate_hz = f.max_hz;
-  const estimation::PredictionRun r = estimation::RunPrediction(trace, o);
+}
+
+// The run's figures: JSON (--json) or a table and a line on the EKF.
+void PrintPrediction(const PredictFlags& f, const estimation::MotionTrace& trace,
+                     const estimation::PredictionRun& r) {
   const double zoh = r.baselines.front().rms_mm;
   // The heart rate only inside the physiological band (a rate outside it is no heart rate).
   const double bpm = 60.0 * r.rate_hz;
@@ -193,6 +181,30 @@ void RunPredict(const PredictFlags& f) {
             << " rejected, " << r.initialisations << " initialisation(s), respiration term "
             << (r.respiration ? "on (" + Fixed(r.offset_rate_q_mm_s, 2) + " mm/s/√s)" : "off")
             << " [" << RespirationMode(f) << "]\n";
+}
+
+void RunPredict(const PredictFlags& f) {
+  estimation::MotionTrace trace;
+  estimation::MotionTrace truth;
+  estimation::PredictionRunOptions o;
+  LoadPredictTraces(f, trace, truth, o);
+  if (f.combination == "weighted") {
+    o.combination = estimation::Combination::kWeighted;
+  } else if (f.combination != "best") {
+    throw std::invalid_argument("--combination must be 'best' or 'weighted', not '" +
+                                f.combination + "'");
+  }
+  o.latency_s = f.latency_s;
+  o.measurement_rate_hz = f.rate_hz;
+  o.ekf.harmonics = ParseHarmonics(f.harmonics);
+  o.ekf.respiration = f.respiration      ? estimation::Respiration::kOn
+                      : f.no_respiration ? estimation::Respiration::kOff
+                                         : estimation::Respiration::kAuto;
+  o.ekf.noise_mm = f.noise_mm;
+  o.ekf.init_window_s = f.init_window_s;
+  o.ekf.min_rate_hz = f.min_hz;
+  o.ekf.max_rate_hz = f.max_hz;
+  PrintPrediction(f, trace, estimation::RunPrediction(trace, o));
 }
 
 }  // namespace

@@ -106,7 +106,8 @@ nlohmann::json Vec3(const Eigen::Vector3d& v) {
   return nlohmann::json::array({v.x(), v.y(), v.z()});
 }
 
-void RunReconstruct(const ReconstructFlags& f) {
+// The reconstruction's options from the flags, checked (std::invalid_argument naming the flag).
+imaging::ReconstructionOptions ReconstructOptions(const ReconstructFlags& f) {
   if (f.sequence.empty()) throw std::invalid_argument("SEQUENCE is required");
   if (!fs::is_regular_file(f.sequence)) {
     throw std::invalid_argument("SEQUENCE: no such file: " + f.sequence);
@@ -168,27 +169,12 @@ void RunReconstruct(const ReconstructFlags& f) {
     throw std::invalid_argument("--compare-to: no such file: " + f.compare_to);
   }
 
-  const imaging::PlusSequence sequence = imaging::ReadPlusSequence(f.sequence);
-  const std::uint64_t pixels = sequence.FrameBytes() * sequence.frames.size();
-  int last_decile = -1;
-  if (pixels > 20'000'000) {
-    o.progress = [&last_decile](std::size_t done, std::size_t total) {
-      const int decile = static_cast<int>(10 * done / total);
-      if (decile != last_decile) {
-        last_decile = decile;
-        std::cerr << "reconstruct: " << done << "/" << total << " frames\n";
-      }
-    };
-  }
-  const imaging::ReconstructionResult r = imaging::ReconstructFreehand(sequence, o);
-  imaging::WriteVolume(r.volume, f.out);
+  return o;
+}
 
-  std::optional<imaging::VolumeAgreement> agreement;
-  if (!f.compare_to.empty()) {
-    agreement =
-        imaging::CompareVolumes(r.volume, imaging::ReadVolume(f.compare_to), f.compare_shift);
-  }
-
+// The figures: JSON (--json) or lines.
+void PrintReconstruction(const ReconstructFlags& f, const imaging::ReconstructionResult& r,
+                         const std::optional<imaging::VolumeAgreement>& agreement) {
   const imaging::Volume& v = r.volume;
   if (f.json) {
     nlohmann::json j;
@@ -248,6 +234,32 @@ void RunReconstruct(const ReconstructFlags& f) {
               << Fixed(agreement->best_correlation, 3) << ")\n";
   }
   std::cout << "wrote " << f.out << "\n";
+}
+
+void RunReconstruct(const ReconstructFlags& f) {
+  imaging::ReconstructionOptions o = ReconstructOptions(f);
+  const imaging::PlusSequence sequence = imaging::ReadPlusSequence(f.sequence);
+  const std::uint64_t pixels = sequence.FrameBytes() * sequence.frames.size();
+  int last_decile = -1;
+  if (pixels > 20'000'000) {
+    o.progress = [&last_decile](std::size_t done, std::size_t total) {
+      const int decile = static_cast<int>(10 * done / total);
+      if (decile != last_decile) {
+        last_decile = decile;
+        std::cerr << "reconstruct: " << done << "/" << total << " frames\n";
+      }
+    };
+  }
+  const imaging::ReconstructionResult r = imaging::ReconstructFreehand(sequence, o);
+  imaging::WriteVolume(r.volume, f.out);
+
+  std::optional<imaging::VolumeAgreement> agreement;
+  if (!f.compare_to.empty()) {
+    agreement =
+        imaging::CompareVolumes(r.volume, imaging::ReadVolume(f.compare_to), f.compare_shift);
+  }
+
+  PrintReconstruction(f, r, agreement);
 }
 
 }  // namespace

@@ -204,9 +204,9 @@ TEST(Cli, TuneParamsListsEveryParameterThatSetAccepts) {
   for (const auto& p : part) EXPECT_EQ(p["stage"], "detector");
   EXPECT_NE(RunCli("tune params --stage tracker").err.find("unknown stage"), std::string::npos);
   // Every name at its upper bound passes `tune trial`'s --set (every stage runs there; the
-  // error is then the missing recording's,
-  // not a parameter's): a 10 mm guidewire fits a 10 mm sheath, contact (2 mm) is closer than
-  // a close gap of 20 mm. The lower bounds: tests/live/pipeline_parameters_test.cc.
+  // error is then the missing recording's, not a parameter's): a 10 mm guidewire fits a 10 mm
+  // sheath, contact (2 mm) is closer than a close gap of 20 mm. The lower bounds:
+  // tests/live/pipeline_parameters_test.cc.
   TempDir dir("tune_params_cli", true);
   const Result t = RunCli("tune trial --recording missing.igs.mha" + at_max, dir.path());
   EXPECT_NE(t.rc, 0);
@@ -245,7 +245,16 @@ INSTANTIATE_TEST_SUITE_P(
                       BadInput{"sim backlash --tip-load -1", "tip_load_n"},
                       BadInput{"sim record --out /tmp/x --tip-loads 1,,2", "--tip-loads"},
                       BadInput{"sim record --out /tmp/x --configs mars", "--configs"},
-                      BadInput{"sim record", "--out"}, BadInput{"sim nosuch", "subcommand"}));
+                      BadInput{"sim record", "--out"}, BadInput{"sim nosuch", "subcommand"},
+                      // --set of a stage the command does not run names the ones it runs.
+                      BadInput{"servo --duration 0.1 --set detector.min_confidence=0.4",
+                               "does not apply to `servo` (its stage 'detector' does not run "
+                               "there; it runs follower.*, servo.*)"},
+                      BadInput{"servo --duration 0.1 --set follower.offset_gain=2",
+                               "parameter 'follower.offset_gain' = 2: outside its bounds [0.001, "
+                               "1]"},
+                      BadInput{"track --sim --duration 1 --set follower.standoff_mm=3",
+                               "it runs scanner.*, detector.*, target.*, predictor.*"}));
 
 }  // namespace
 }  // namespace echoservo
