@@ -116,7 +116,7 @@ double Volume::Sample(const Eigen::Vector3d& physical_mm) const {
     const int dx = corner & 1, dy = (corner >> 1) & 1, dz = (corner >> 2) & 1;
     const double w = (dx ? frac[0] : 1.0 - frac[0]) * (dy ? frac[1] : 1.0 - frac[1]) *
                      (dz ? frac[2] : 1.0 - frac[2]);
-    if (w == 0.0) continue;
+    // No branch on w = 0 (a corner outside a 1-voxel axis repeats a valid one): it adds 0.
     value += w * at(base[0] + dx * step[0], base[1] + dy * step[1], base[2] + dz * step[2]);
   }
   return value;

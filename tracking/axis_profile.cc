@@ -1,5 +1,7 @@
 #include "tracking/axis_profile.h"
 
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <array>
@@ -50,8 +52,7 @@ class Sampler {
       const int dx = corner & 1, dy = (corner >> 1) & 1, dz = (corner >> 2) & 1;
       const double w = (dx ? frac[0] : 1.0 - frac[0]) * (dy ? frac[1] : 1.0 - frac[1]) *
                        (dz ? frac[2] : 1.0 - frac[2]);
-      if (w == 0.0) continue;
-      value += w * b0[dx * sx + dy * sy + dz * sz];
+      value += w * b0[dx * sx + dy * sy + dz * sz];  // no branch on w = 0: it adds 0 exactly
     }
     return value;
   }
@@ -197,26 +198,37 @@ double SurfaceFitResidual(const std::vector<double>& amp, double s0, double sigm
     sap += a * phi;
     btb += a * a;
   }
-  Eigen::Matrix3d ata;
-  ata << static_cast<double>(amp.size()), sg, sp, sg, sgg, sgp, sp, sgp, spp;
-  const Eigen::Vector3d atb(sa, sag, sap);
+  // The normal equations solved in closed form (3 × 3 by cofactors, the 2 × 2 subsets by
+  // Cramer's rule): the grid search below solves them ~10^3 times per profile.
+  const double n = static_cast<double>(amp.size());
+  auto residual = [&](double b, double h, double c) {
+    // |a − (b + h g + c Φ)|² expanded with the sums above.
+    return btb - 2.0 * (b * sa + h * sag + c * sap) +
+           (b * b * n + h * h * sgg + c * c * spp + 2.0 * (b * h * sg + b * c * sp + h * c * sgp));
+  };
   // Both terms first: when feasible, no subset fits better.
-  double best = std::numeric_limits<double>::infinity();
-  for (int mask : {3, 1, 2}) {
-    Eigen::Matrix3d m = ata;
-    Eigen::Vector3d r = atb;
-    for (int c = 1; c <= 2; ++c)
-      if (!(mask & c)) {  // term unused: decouple it
-        m.row(c).setZero();
-        m.col(c).setZero();
-        m(c, c) = 1.0;
-        r[c] = 0.0;
-      }
-    const Eigen::Vector3d x = m.ldlt().solve(r);
-    if (x[1] < 0.0 || x[2] < 0.0) continue;
-    best = std::min(best, btb - 2.0 * x.dot(atb) + x.dot(ata * x));
-    if (mask == 3) break;
+  {
+    const double c00 = sgg * spp - sgp * sgp, c01 = sp * sgp - sg * spp, c02 = sg * sgp - sp * sgg;
+    const double det = n * c00 + sg * c01 + sp * c02;
+    if (std::abs(det) > 1e-300) {
+      const double c11 = n * spp - sp * sp, c12 = sg * sp - n * sgp, c22 = n * sgg - sg * sg;
+      const double b = (c00 * sa + c01 * sag + c02 * sap) / det;
+      const double h = (c01 * sa + c11 * sag + c12 * sap) / det;
+      const double c = (c02 * sa + c12 * sag + c22 * sap) / det;
+      if (h >= 0.0 && c >= 0.0) return residual(b, h, c);
+    }
   }
+  double best = std::numeric_limits<double>::infinity();
+  // One term (x = g or Φ with sums sx, sxx, sax): [n sx; sx sxx] (b, k) = (sa, sax).
+  auto one = [&](double sx, double sxx, double sax, bool echo) {
+    const double det = n * sxx - sx * sx;
+    if (!(std::abs(det) > 1e-300)) return;
+    const double b = (sxx * sa - sx * sax) / det, k = (n * sax - sx * sa) / det;
+    if (k < 0.0) return;
+    best = std::min(best, echo ? residual(b, k, 0.0) : residual(b, 0.0, k));
+  };
+  one(sg, sgg, sag, true);
+  one(sp, spp, sap, false);
   return best;
 }
 
@@ -486,14 +498,16 @@ LateralSurface FindLateralSurface(const imaging::Volume& v, const TipEstimate& t
   beam -= beam.dot(tip.axis.direction) * tip.axis.direction;
   const bool beam_known = beam.norm() > 0.2;
   if (beam_known) beam.normalize();
-  std::vector<Eigen::Vector2d> xy;
-  std::vector<double> sv;
   const int bg_n = static_cast<int>(std::min(4.0, back - 2.0) / ds);
-  for (int k = 0; k < 8; ++k) {
+  // The eight rays are independent: searched in parallel, gathered in ray order.
+  std::array<double, 8> ray_s;
+  ray_s.fill(std::numeric_limits<double>::quiet_NaN());
+  std::array<bool, 8> ray_used{};
+  tbb::parallel_for(0, 8, [&](int k) {
     const double a = k * std::numbers::pi / 4;
     const Eigen::Vector3d o = r * (std::cos(a) * u + std::sin(a) * w);
-    if (beam_known && o.normalized().dot(beam) > std::cos(0.7)) continue;  // behind the wire
-    ++out.usable;
+    if (beam_known && o.normalized().dot(beam) > std::cos(0.7)) return;  // behind the wire
+    ray_used[static_cast<std::size_t>(k)] = true;
     const Line3 ray{tip.tip_mm - back * tip.axis.direction + o, tip.axis.direction};
     Eigen::Vector3d ru, rw;
     PlaneBasis(ray.direction, ru, rw);
@@ -504,11 +518,18 @@ LateralSurface FindLateralSurface(const imaging::Volume& v, const TipEstimate& t
       if (std::isnan(x)) break;
       fp.push_back(x);
     }
-    if (static_cast<int>(fp.size()) < bg_n + 8) continue;
+    if (static_cast<int>(fp.size()) < bg_n + 8) return;
     const double i = FirstSurface(fp, ds, bg_n, 0, bg_n, rise_floor, edge.dynamic_range_db);
-    if (std::isnan(i)) continue;
+    if (!std::isnan(i)) ray_s[static_cast<std::size_t>(k)] = i * ds - back;
+  });
+  std::vector<Eigen::Vector2d> xy;
+  std::vector<double> sv;
+  for (int k = 0; k < 8; ++k) {
+    out.usable += ray_used[static_cast<std::size_t>(k)];
+    if (std::isnan(ray_s[static_cast<std::size_t>(k)])) continue;
+    const double a = k * std::numbers::pi / 4;
     xy.emplace_back(std::cos(a) * r, std::sin(a) * r);
-    sv.push_back(i * ds - back);
+    sv.push_back(ray_s[static_cast<std::size_t>(k)]);
   }
   // Robust plane fit.
   std::vector<bool> keep(sv.size(), true);

@@ -19,6 +19,10 @@
 namespace echoservo::tracking {
 namespace {
 
+// The fine refinement's second stage searches next to this many of its first stage's best
+// directions (SearchConeCoarseToFine).
+constexpr int kFineTopK = 3;
+
 // Median and MAD of line scores into scene.score_median / score_mad; false when empty.
 bool SetScoreStats(std::vector<double> sc, SceneBaseline& scene) {
   if (sc.empty()) return false;
@@ -26,6 +30,12 @@ bool SetScoreStats(std::vector<double> sc, SceneBaseline& scene) {
   scene.score_median = m.median;
   scene.score_mad = m.mad;
   return true;
+}
+
+// The confidence's Radon-peak factor from the peak's robust z-score (EvaluateLine): the peak's
+// contrast only needs to be clear (z ≥ 5).
+double PeakConfidence(double z_score) {
+  return 1.0 - std::exp(-std::max(0.0, z_score - 5.0) / 4.0);
 }
 
 // Robust z-score of `score` among the scene's line scores.
@@ -74,6 +84,11 @@ void RadonDetectorOptions::Validate() const {
   };
   if (coarse_factor < 2 || coarse_factor > 16) bad("coarse_factor");
   params::kCoarseDirections.Check(coarse_directions, "RadonDetectorOptions");
+  if (hemisphere_search.stride < 1 || hemisphere_search.stride > 64)
+    bad("hemisphere_search.stride");
+  if (hemisphere_search.top_k < 1 || hemisphere_search.top_k > 256) bad("hemisphere_search.top_k");
+  if (!(hemisphere_search.neighbour_rad > 0 && hemisphere_search.neighbour_rad < 1.6))
+    bad("hemisphere_search.neighbour_rad");
   if (!(fine_cone_rad > 0 && fine_cone_rad < 1)) bad("fine_cone_rad");
   if (fine_steps < 2 || fine_steps > 101) bad("fine_steps");
   fit.Validate();
@@ -186,10 +201,11 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
     b = SearchDirectionsCoarseToFine(L1, DirectionCone(pd, options_.tracking_cone_rad, steps),
                                      CoarseToFineOptions{2, 8, 1.5 * spacing_rad}, window);
   } else {
-    // Coarse to fine over the hemisphere: every other direction, then the rest near the best
-    // of those (the same best line at ~60 % of the cost; the z-score's baseline is the first
-    // stage's scores, a uniform half of the hemisphere's).
-    b = SearchDirectionsCoarseToFine(L1, FibonacciHemisphere(options_.coarse_directions));
+    // Coarse to fine over the hemisphere: every fourth direction, then the rest near the best
+    // of those (the same best line at ~40 % of the cost; the z-score's baseline is the first
+    // stage's scores, a uniform quarter of the hemisphere's).
+    b = SearchDirectionsCoarseToFine(L1, FibonacciHemisphere(options_.coarse_directions),
+                                     options_.hemisphere_search);
   }
   if (b.peak.score <= 0) return out;
   // The distribution of line scores over the hemisphere, unless known: a full search's own
@@ -237,6 +253,17 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
       peak = b.peaks[order[next]];
     }
     tried.push_back(dir);
+    // The confidence is a product of factors ≤ 1: a line whose peak factor alone is below
+    // min_confidence cannot be found, and is not evaluated (a catheter-free volume's
+    // runners-up, usually).
+    if (scene.valid && options_.min_confidence > 0 &&
+        PeakConfidence(RobustZ(scene, peak.score)) < options_.min_confidence) {
+      if (c == 0) {
+        best.peak_z = RobustZ(scene, peak.score);
+        best.tracked = previous != nullptr;
+      }
+      continue;
+    }
     CatheterDetection d = EvaluateLine(v, L1, L2, dir, peak, fine, window, bg, scene);
     d.tracked = previous != nullptr;
     if (d.found) return d;
@@ -261,7 +288,7 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
   f.peak = coarse_peak;
   for (int pass = 0; pass < fine.passes; ++pass) {
     RadonSearchResult g =
-        SearchDirections(L2, DirectionCone(f.direction, cone, options_.fine_steps), &near);
+        SearchConeCoarseToFine(L2, f.direction, cone, options_.fine_steps, kFineTopK, &near);
     if (g.peak.score > 0) {
       f = g;
       near.line = PeakLine(L2, f.direction, f.peak);
@@ -295,12 +322,17 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
     }
   }
 
+  // Tracking with the beams its full search inferred: the fit with them at once.
+  const bool volume_beams_known = beams.known();
+  const bool reuse_beams = window && !beams.known() && options_.infer_beams_from_ribbon &&
+                           scene.inferred_beams.has_value();
+  if (reuse_beams) beams = *scene.inferred_beams;
   auto fit = FitEchoAxis(v, line, bg, options_.fit, beams);
   if (!fit) return out;
   // FindTip's first-echo edge looks back along the volume's own beams: only when those are
   // the beams in use.
   EdgeOptions tip_edge = options_.edge;
-  if (options_.beams || !beams.known()) tip_edge.tip_first_echo_mm = 0.0;
+  if (options_.beams || !volume_beams_known) tip_edge.tip_first_echo_mm = 0.0;
   TipEstimate tip = FindTip(v, fit->axis, bg, tip_edge);
   if (!tip.found) return out;
   if (!beams.known() && options_.infer_beams_from_ribbon) {
@@ -319,6 +351,7 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
           fit = std::move(refit);
           tip = retip;
           beams = inferred;
+          out.baseline.inferred_beams = inferred;
         }
       }
     }
@@ -347,7 +380,7 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
   // only needs to be clear (z ≥ 5): in a volume full of bright tissue the other directions'
   // best lines are bright too (a catheter beside tissue has z 9–13 where one in water has
   // 20–35), while the tube check is what tells a catheter from a line within tissue.
-  const double c_peak = 1.0 - std::exp(-std::max(0.0, z_score - 5.0) / 4.0);
+  const double c_peak = PeakConfidence(z_score);
   const double c_len = std::clamp(
       out.line_length_mm / (2.0 * std::max(1e-9, options_.min_line_length_mm)), 0.0, 1.0);
   const double c_tube = std::clamp((out.tubularity - 0.2) / 0.5, 0.0, 1.0);

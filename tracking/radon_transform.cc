@@ -939,4 +939,45 @@ RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& L,
   return b;
 }
 
+RadonSearchResult SearchConeCoarseToFine(const RadonLevel& L, const Eigen::Vector3d& d,
+                                         double half_rad, int steps, int top_k,
+                                         const RadonWindow* window) {
+  const std::vector<Eigen::Vector3d> dirs = DirectionCone(d, half_rad, steps);
+  auto on_subgrid = [steps](int i) { return i % 2 == 0 || i == steps - 1; };
+  std::vector<int> first_ij;
+  std::vector<Eigen::Vector3d> first;
+  for (int i = 0; i < steps; ++i)
+    for (int j = 0; j < steps; ++j)
+      if (on_subgrid(i) && on_subgrid(j)) {
+        first_ij.push_back(i * steps + j);
+        first.push_back(dirs[static_cast<std::size_t>(i * steps + j)]);
+      }
+  RadonSearchResult b = SearchDirections(L, first, window);
+  std::vector<std::size_t> order(first.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  const std::size_t k = std::min(order.size(), static_cast<std::size_t>(std::max(0, top_k)));
+  std::partial_sort(order.begin(), order.begin() + static_cast<long>(k), order.end(),
+                    [&](std::size_t a, std::size_t c) {
+                      return b.scores[a] > b.scores[c] || (b.scores[a] == b.scores[c] && a < c);
+                    });
+  std::vector<char> take(dirs.size(), 0);
+  for (std::size_t t = 0; t < k; ++t) {
+    if (b.scores[order[t]] <= 0) break;
+    const int i0 = first_ij[order[t]] / steps, j0 = first_ij[order[t]] % steps;
+    for (int i = std::max(0, i0 - 1); i <= std::min(steps - 1, i0 + 1); ++i)
+      for (int j = std::max(0, j0 - 1); j <= std::min(steps - 1, j0 + 1); ++j)
+        if (!(on_subgrid(i) && on_subgrid(j))) take[static_cast<std::size_t>(i * steps + j)] = 1;
+  }
+  std::vector<Eigen::Vector3d> second;
+  for (std::size_t i = 0; i < dirs.size(); ++i)
+    if (take[i]) second.push_back(dirs[i]);
+  if (second.empty()) return b;
+  const RadonSearchResult r = SearchDirections(L, second, window);
+  if (r.peak.score > b.peak.score) {
+    b.peak = r.peak;
+    b.direction = r.direction;
+  }
+  return b;
+}
+
 }  // namespace echoservo::tracking

@@ -161,4 +161,13 @@ RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& level,
                                                const CoarseToFineOptions& options = {},
                                                const RadonWindow* window = nullptr);
 
+// Best peak over DirectionCone(d, half_rad, steps) in two stages: the sub-grid of every other
+// row and column (the last ones included), then the grid's other directions next to (within
+// one row and column of) the top_k best of those. The score is smooth in the direction near a
+// line, so this is the grid's best at about half the cost (steps 9: 25 + ~16 of 81).
+// `scores` and `directions` hold the first stage's.
+RadonSearchResult SearchConeCoarseToFine(const RadonLevel& level, const Eigen::Vector3d& d,
+                                         double half_rad, int steps, int top_k,
+                                         const RadonWindow* window);
+
 }  // namespace echoservo::tracking

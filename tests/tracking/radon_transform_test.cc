@@ -156,5 +156,30 @@ TEST(RadonTransform, CoarseToFineSearchFindsTheBestDirectionOfTheSet) {
     EXPECT_EQ(c2f.scores[i], all.scores[2 * i]) << i;
 }
 
+// The fine refinement's two-stage cone search gives the full cone grid's best direction near a
+// line (its score is smooth there), from the sub-grid and the neighbours of its best.
+TEST(RadonTransform, ConeCoarseToFineFindsTheGridsBestNearALine) {
+  const auto v = TestVolume(11);
+  const RadonLevel level = MakeRadonLevel(v, 2, 1.0);
+  const Eigen::Vector3d p0 = v.IndexToPhysical(Eigen::Vector3d(5, 10, 8));
+  const Eigen::Vector3d p1 = v.IndexToPhysical(Eigen::Vector3d(40, 25, 22));
+  const Eigen::Vector3d truth = (p1 - p0).normalized();
+  for (const double tilt_rad : {0.0, 0.03, 0.06}) {
+    Eigen::Vector3d u, w;
+    PlaneBasis(truth, u, w);
+    const Eigen::Vector3d start = (truth + std::tan(tilt_rad) * u).normalized();
+    const RadonWindow near{Line3{p0, start}, 3.0};
+    for (const int steps : {8, 9}) {
+      const auto grid = SearchDirections(level, DirectionCone(start, 0.08, steps), &near);
+      const auto c2f = SearchConeCoarseToFine(level, start, 0.08, steps, 3, &near);
+      EXPECT_EQ(c2f.peak.score, grid.peak.score) << tilt_rad << " " << steps;
+      EXPECT_EQ(c2f.direction, grid.direction) << tilt_rad << " " << steps;
+      // The first stage is the sub-grid: every other row and column and the last ones.
+      const std::size_t side = static_cast<std::size_t>((steps + 2) / 2);
+      EXPECT_EQ(c2f.scores.size(), side * side);
+    }
+  }
+}
+
 }  // namespace
 }  // namespace echoservo::tracking
