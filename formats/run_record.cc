@@ -245,6 +245,46 @@ bool Exists(const fs::path& p) {
   return fs::is_regular_file(p, ec);
 }
 
+constexpr const char* kTrackerCountKeys[] = {"acquired", "missed",    "shed",
+                                             "skipped",  "processed", "not_found"};
+std::uint64_t* TrackerCountField(TrackerVolumeCounts& c, std::size_t i) {
+  std::uint64_t* fields[] = {&c.acquired, &c.missed,    &c.shed,
+                             &c.skipped,  &c.processed, &c.not_found};
+  return fields[i];
+}
+
+}  // namespace
+
+std::string TrackerCountsJson(const TrackerVolumeCounts& counts) {
+  TrackerVolumeCounts c = counts;
+  Json j = Json::object();
+  for (std::size_t i = 0; i < std::size(kTrackerCountKeys); ++i)
+    j[kTrackerCountKeys[i]] = *TrackerCountField(c, i);
+  return j.dump(2);
+}
+
+namespace {
+
+// tracker.json (optional): every count present, a non-negative integer, and consistent.
+TrackerVolumeCounts ReadTrackerCountsJson(const fs::path& path) {
+  constexpr std::uintmax_t kMaxBytes = 1 << 16;
+  std::error_code ec;
+  if (fs::file_size(path, ec) > kMaxBytes) FailFile(path, "larger than 64 KiB: not a tracker.json");
+  const Json j = ParseJsonFile(path, "");
+  if (!j.is_object()) FailFile(path, "must be a JSON object");
+  TrackerVolumeCounts c;
+  for (std::size_t i = 0; i < std::size(kTrackerCountKeys); ++i) {
+    const char* key = kTrackerCountKeys[i];
+    if (!j.contains(key) || !j[key].is_number_unsigned())
+      FailFile(path, std::string("key '") + key + "' must be a count (an integer ≥ 0)");
+    *TrackerCountField(c, i) = j[key].get<std::uint64_t>();
+  }
+  if (c.processed > c.acquired || c.shed > c.acquired)
+    FailFile(path, "keys 'processed' and 'shed' cannot exceed 'acquired'");
+  if (c.not_found > c.processed) FailFile(path, "key 'not_found' exceeds 'processed'");
+  return c;
+}
+
 // timing.json (optional): the keys the report shows, each checked for its type and range.
 ServoTimingRecord ReadTimingJson(const fs::path& path) {
   constexpr std::uintmax_t kMaxBytes = 1 << 20;
@@ -386,6 +426,9 @@ RunRecord ReadRunRecord(const fs::path& dir) {
   const fs::path timing_path = dir / "timing.json";
   run.has_timing = Exists(timing_path);
   if (run.has_timing) run.timing = ReadTimingJson(timing_path);
+  const fs::path tracker_path = dir / "tracker.json";
+  run.has_tracker_counts = Exists(tracker_path);
+  if (run.has_tracker_counts) run.tracker = ReadTrackerCountsJson(tracker_path);
   return run;
 }
 

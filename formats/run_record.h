@@ -84,6 +84,20 @@ struct ServoTimingRecord {
   std::uint64_t deadline_holds = 0, deadline_retracts = 0;
 };
 
+// tracker.json: what became of the volumes the source acquired (written at the end of a run by
+// the tracker runtime's caller: live/demo_run.cc). acquired = processed + shed; the scanner's
+// lost acquisition slots (missed) were never acquired.
+struct TrackerVolumeCounts {
+  std::uint64_t acquired = 0;  // volumes the source acquired or read
+  std::uint64_t missed = 0;    // acquisition slots the scanner lost (a late renderer)
+  std::uint64_t shed = 0;      // stale volumes the tracker dropped for a newer one
+  std::uint64_t skipped = 0;   // a replay's frames whose timestamp did not increase
+  std::uint64_t processed = 0;
+  std::uint64_t not_found = 0;  // processed, no catheter or target
+};
+// The tracker.json text of `counts` (one definition: the writer and ReadRunRecord).
+std::string TrackerCountsJson(const TrackerVolumeCounts& counts);
+
 struct RunRecord {
   std::filesystem::path dir;
   RunInfo info;
@@ -92,8 +106,9 @@ struct RunRecord {
   std::vector<LatencyRecord> latency;  // empty: no latency.csv
   std::vector<TruthRecord> truth;      // empty: no truth.csv
   ServoTimingRecord timing;            // timing.json, when has_timing
+  TrackerVolumeCounts tracker;         // tracker.json, when has_tracker_counts
   bool has_servo = false, has_latency = false, has_em = false, has_truth = false;
-  bool has_timing = false;
+  bool has_timing = false, has_tracker_counts = false;
 
   std::filesystem::path EmPath() const { return dir / "em.csv"; }
 };
@@ -119,6 +134,7 @@ class RunWriter {
   RunWriter(const RunWriter&) = delete;
   RunWriter& operator=(const RunWriter&) = delete;
 
+  const std::filesystem::path& dir() const { return dir_; }
   void AddTarget(const TargetRecord& r);
   void AddServo(const ServoRecord& r);
   void AddLatency(const LatencyRecord& r);

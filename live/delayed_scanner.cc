@@ -22,6 +22,10 @@ void DelayedScanner::Stop() {
   stop_ = true;
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
+  // Volumes acquired but never taken: dropped too (acquired = delivered + dropped).
+  std::lock_guard lock(m_);
+  dropped_ += queue_.size();
+  queue_.clear();
 }
 
 void DelayedScanner::Run() {

@@ -52,7 +52,8 @@ class DelayedScanner {
 
   std::uint64_t acquired() const { return acquired_; }
   std::uint64_t missed() const { return missed_; }    // acquisition slots lost
-  std::uint64_t dropped() const { return dropped_; }  // delivered but superseded
+  // Delivered but superseded by a newer one, or still queued when stopped.
+  std::uint64_t dropped() const { return dropped_; }
 
  private:
   void Run();

@@ -403,7 +403,8 @@ void FillDemoCounts(const ServoNode& servo, const TrackerRunResult& tr, const De
   result.contact_reported_apart = sink.contact_reported_apart;
   result.volumes = tr.source.acquired;
   result.detected = tr.stats.measured;
-  result.missed_acquisitions = tr.source.missed;
+  result.missed_acquisitions = tr.volumes.missed;
+  result.shed_volumes = tr.volumes.shed;
   result.dropped_frames = tr.source.dropped + tr.stats.not_found + tr.source.missed;
   result.tracker_errors = tr.stats.errors;
   result.volumes_recorded = tr.recorder.written;

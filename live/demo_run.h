@@ -118,6 +118,7 @@ struct DemoResult {
   std::uint64_t detected = 0;        // volumes with a catheter found
   std::uint64_t dropped_frames = 0;  // not detected, skipped by a late tracker, or not acquired
   std::uint64_t missed_acquisitions = 0;     // acquisition slots lost to a late renderer
+  std::uint64_t shed_volumes = 0;            // stale volumes the tracker dropped for a newer one
   std::uint64_t tracker_errors = 0;          // volumes the tracker could not process (logged)
   std::uint64_t volumes_recorded = 0;        // --save-volumes: volumes written to volumes.igs.mhd
   std::uint64_t volumes_record_dropped = 0;  // --save-volumes: not recorded (queue full, error)

@@ -39,6 +39,19 @@ TrackerRunResult TrackerRuntime::Run(TrackerSource& source) {
   TrackerRunResult result;
   result.stats = node_.stats();
   result.source = source.counts();
+  result.volumes.acquired = result.source.acquired;
+  result.volumes.missed = result.source.missed;
+  result.volumes.shed = result.source.dropped;
+  result.volumes.skipped = result.source.skipped;
+  result.volumes.processed = result.stats.volumes;
+  result.volumes.not_found = result.stats.not_found;
+  if (o_.writer)
+    formats::ReplaceFileContents(o_.writer->dir() / "tracker.json",
+                                 formats::TrackerCountsJson(result.volumes) + "\n");
+  if (o_.log && result.volumes.shed > 0)
+    o_.log("tracker: " + std::to_string(result.volumes.shed) + " of " +
+           std::to_string(result.volumes.acquired) +
+           " volumes shed (stale: a newer one had arrived before the tracker was free)");
   if (recorder_) {  // what is queued is written, then synced
     recorder_->Close();
     result.recorder = recorder_->stats();

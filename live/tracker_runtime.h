@@ -18,6 +18,7 @@
 #include <memory>
 #include <string>
 
+#include "formats/run_record.h"
 #include "imaging/io/async_sequence_writer.h"
 #include "live/tracker_node.h"
 #include "live/tracker_source.h"
@@ -45,6 +46,9 @@ struct TrackerRuntimeOptions {
 struct TrackerRunResult {
   TrackerStats stats;
   SourceCounts source;
+  // What became of the volumes: acquired, missed by the scanner, shed (stale, superseded by a
+  // newer one), processed, not found; with a RUN writer also its tracker.json.
+  formats::TrackerVolumeCounts volumes;
   imaging::AsyncRecorderStats recorder;  // record_to only
   std::string recorder_summary_json;     // record_to only: RUN/volumes.json
 };

@@ -231,6 +231,12 @@ std::string SummaryHtml(const AccuracyMetrics& m, const AccuracyReportOptions& o
   s += Row({"frames and samples", "count"}, "", true);
   s += Row({"volumes processed", std::to_string(m.dropped.volumes)});
   s += Row({"dropped frames (not found + missing in gaps)", std::to_string(m.dropped.total())});
+  if (m.tracker_volumes) {  // tracker.json: where the dropped frames went
+    const formats::TrackerVolumeCounts& t = *m.tracker_volumes;
+    s += Row({"volumes acquired by the scanner", std::to_string(t.acquired)});
+    s += Row({"acquisitions the scanner missed", std::to_string(t.missed)});
+    s += Row({"volumes shed by the tracker (stale: a newer one waiting)", std::to_string(t.shed)});
+  }
   s += Row({"EM samples (valid)", std::to_string(m.em.samples.size()) + " (" +
                                       std::to_string(m.em.valid_samples()) + ")"});
   s += Row({"EM drop-outs", std::to_string(m.em.dropouts())});
@@ -578,6 +584,7 @@ AccuracyMetrics ComputeAccuracy(const formats::RunRecord& run, const formats::Em
   m.pipeline = SummarizeMs(pipeline);
   m.dropped = CountDropped(run);
   if (run.has_timing) m.servo_timing = run.timing;
+  if (run.has_tracker_counts) m.tracker_volumes = run.tracker;
   if (!run.servo.empty()) {
     m.servo_faults = run.servo.back().faults - run.servo.front().faults;
     for (std::size_t i = 0; i + 1 < run.servo.size(); ++i) {
@@ -660,6 +667,9 @@ std::string AccuracyJson(const AccuracyMetrics& m, const AccuracyReportOptions& 
       {"servo_faults", m.servo_faults},
       {"servo_mode_s", modes},
       {"servo_timing", ServoTimingJson(m)},
+      {"tracker_volumes", m.tracker_volumes
+                              ? Json::parse(formats::TrackerCountsJson(*m.tracker_volumes))
+                              : Json(nullptr)},
       {"notes", m.notes}};
   return j.dump(2);
 }

@@ -92,6 +92,9 @@ struct AccuracyMetrics {
   double servo_faults = 0.0;
   std::map<std::string, double> servo_mode_s;              // time in each servo mode
   std::optional<formats::ServoTimingRecord> servo_timing;  // the RUN's timing.json, when present
+  // The RUN's tracker.json, when present: volumes acquired, missed by the scanner, shed by the
+  // tracker (stale), processed.
+  std::optional<formats::TrackerVolumeCounts> tracker_volumes;
   std::vector<std::string> notes;
   // The scored window: from window_from_s (−inf: the whole run) on, and why.
   double window_from_s = -std::numeric_limits<double>::infinity();

@@ -1,12 +1,12 @@
 // `echoservo demo [--duration S] [--out RUN_DIR] [--json] [...]`: the closed-loop demo on the
 // simulated scanner and catheter (live/demo_run.h). JSON: {"tip_to_target_rms_mm",
 // "true_tip_to_target_rms_mm", "latency_ms": {"p50", "p99", "max", "count"},
-// "dropped_frames", "volumes", "detected", "estimates_accepted", "estimates_rejected",
-// "estimates_rejected_by" {"link", "non_finite", "range", "time", "confidence"},
-// "em_samples", "em_dropouts", "servo_cycles", "servo_overruns", "limit_faults",
-// "ekf_harmonics", "ekf_rate_hz", "run_dir", "realtime", "timing", "deadline"} (the last three
-// as in `servo --json` and RUN/timing.json: live/servo_cycle_clock.h ServoTimingJson), and
-// "em_stream": the --em-connect client's counts (RUN/em_stream.json; null without it), and
+// "dropped_frames", "missed_acquisitions", "shed_volumes", "volumes", "detected",
+// "estimates_accepted", "estimates_rejected", "estimates_rejected_by" {"link", "non_finite",
+// "range", "time", "confidence"}, "em_samples", "em_dropouts", "servo_cycles", "servo_overruns",
+// "limit_faults", "ekf_harmonics", "ekf_rate_hz", "run_dir", "realtime", "timing", "deadline"} (the
+// last three as in `servo --json` and RUN/timing.json: live/servo_cycle_clock.h ServoTimingJson),
+// and "em_stream": the --em-connect client's counts (RUN/em_stream.json; null without it), and
 // "igtl_serve": the --igtl-serve detection server's counts (docs/slicer.md; null without it).
 #include <CLI/CLI.hpp>
 #include <cmath>
@@ -62,6 +62,7 @@ void PrintDemoResult(const DemoArgs& a, const live::DemoResult& r,
           {"count", r.latency.count}}},
         {"dropped_frames", r.dropped_frames},
         {"missed_acquisitions", r.missed_acquisitions},
+        {"shed_volumes", r.shed_volumes},
         {"tracker_errors", r.tracker_errors},
         {"volumes", r.volumes},
         {"volumes_recorded", r.volumes_recorded},
@@ -130,9 +131,12 @@ void PrintDemoResult(const DemoArgs& a, const live::DemoResult& r,
               r.latency.p50_ms, r.latency.p99_ms, r.latency.max_ms,
               static_cast<unsigned long long>(r.latency.count));
   std::printf(
-      "volumes %llu, detected %llu, dropped %llu; EM samples %llu (%llu drop-outs); servo overruns "
-      "%llu\n",
-      static_cast<unsigned long long>(r.volumes), static_cast<unsigned long long>(r.detected),
+      "volumes %llu acquired (scanner: %llu acquisitions missed), %llu shed by the tracker "
+      "(stale), detected %llu, dropped %llu in all; EM samples %llu (%llu drop-outs); servo "
+      "overruns %llu\n",
+      static_cast<unsigned long long>(r.volumes),
+      static_cast<unsigned long long>(r.missed_acquisitions),
+      static_cast<unsigned long long>(r.shed_volumes), static_cast<unsigned long long>(r.detected),
       static_cast<unsigned long long>(r.dropped_frames),
       static_cast<unsigned long long>(r.em_samples), static_cast<unsigned long long>(r.em_dropouts),
       static_cast<unsigned long long>(r.servo_overruns));

@@ -204,6 +204,10 @@ void RunReport(const ReportFlags& f) {
               << Fixed(m.latency.max_ms, 1) << " ms\n";
   }
   std::cout << "dropped frames " << m.dropped.total() << " of " << m.dropped.volumes << "\n";
+  if (m.tracker_volumes)
+    std::cout << "volumes: " << m.tracker_volumes->acquired << " acquired, "
+              << m.tracker_volumes->missed << " acquisitions missed by the scanner, "
+              << m.tracker_volumes->shed << " shed by the tracker (stale)\n";
   if (m.servo_timing) {
     const formats::ServoTimingRecord& t = *m.servo_timing;
     std::cout << "servo timing (" << t.realtime_summary << "): wake-up latency p50/p99/p99.9/max "

@@ -107,7 +107,7 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
     EXPECT_FALSE(rt["refusals"].empty()) << rt.dump();  // never silently ignored
   EXPECT_EQ(j["deadline"]["hold_after_overruns"].get<int>(), 10);
   for (const char* f : {"run.json", "targets.csv", "servo.csv", "latency.csv", "em.csv",
-                        "truth.csv", "timing.json", "report.html"})
+                        "truth.csv", "timing.json", "tracker.json", "report.html"})
     EXPECT_TRUE(fs::exists(run / f)) << f;
   EXPECT_EQ(ReadFile(run / "em.csv").substr(0, 25), "t_s,x_mm,y_mm,z_mm,status");
   // run.json records every parameter's value, --set's included.
@@ -129,6 +129,14 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
   EXPECT_EQ(rj["servo_timing"]["cycles"], timing["cycles"]);
   EXPECT_EQ(rj["servo_timing"]["wakeup_latency_us"]["p99"], timing["wakeup_latency_us"]["p99"]);
   EXPECT_NE(ReadFile(dir.path() / "report.html").find("id=\"servo-timing\""), std::string::npos);
+  // ... and its tracker.json: the demo's volume counts, shed and missed apart.
+  ASSERT_TRUE(rj["tracker_volumes"].is_object()) << rep.out;
+  EXPECT_EQ(rj["tracker_volumes"]["acquired"], j["volumes"]);
+  EXPECT_EQ(rj["tracker_volumes"]["missed"], j["missed_acquisitions"]);
+  EXPECT_EQ(rj["tracker_volumes"]["shed"], j["shed_volumes"]);
+  EXPECT_EQ(rj["tracker_volumes"]["acquired"].get<std::uint64_t>(),
+            rj["tracker_volumes"]["processed"].get<std::uint64_t>() +
+                rj["tracker_volumes"]["shed"].get<std::uint64_t>());
 }
 
 TEST(DemoCli, BadOptionsAreClearErrors) {

@@ -179,6 +179,46 @@ TEST(RunRecord, TimingJsonReadsBackAndABadOneNamesTheKey) {
   }
 }
 
+// tracker.json: the writer's text reads back; a missing or bad count, or counts that cannot
+// hold together, name the file and the key.
+TEST(RunRecord, TrackerCountsReadBackAndBadOnesNameTheKey) {
+  const TempDir dir("run_record_tracker");
+  const fs::path run = dir.path() / "run";
+  WriteSmallRun(run);
+  EXPECT_FALSE(formats::ReadRunRecord(run).has_tracker_counts);
+  formats::TrackerVolumeCounts c;
+  c.acquired = 500;
+  c.missed = 3;
+  c.shed = 12;
+  c.processed = 488;
+  c.not_found = 7;
+  WriteLines(run / "tracker.json", {formats::TrackerCountsJson(c)});
+  const formats::RunRecord r = formats::ReadRunRecord(run);
+  ASSERT_TRUE(r.has_tracker_counts);
+  EXPECT_EQ(r.tracker.acquired, 500u);
+  EXPECT_EQ(r.tracker.missed, 3u);
+  EXPECT_EQ(r.tracker.shed, 12u);
+  EXPECT_EQ(r.tracker.skipped, 0u);
+  EXPECT_EQ(r.tracker.processed, 488u);
+  EXPECT_EQ(r.tracker.not_found, 7u);
+  const std::pair<std::string, std::string> bad[] = {
+      {"{", "tracker.json: not valid JSON"},
+      {"[]", "must be a JSON object"},
+      {R"({"acquired": 5, "missed": 0, "shed": 0, "skipped": 0, "processed": 5})",
+       "key 'not_found' must be a count"},
+      {R"({"acquired": 5, "missed": -1, "shed": 0, "skipped": 0, "processed": 5, "not_found": 0})",
+       "key 'missed' must be a count"},
+      {R"({"acquired": 5, "missed": 0, "shed": 0, "skipped": 0, "processed": 6, "not_found": 0})",
+       "cannot exceed 'acquired'"},
+      {R"({"acquired": 5, "missed": 0, "shed": 0, "skipped": 0, "processed": 5, "not_found": 6})",
+       "'not_found' exceeds 'processed'"},
+  };
+  for (const auto& [text, why] : bad) {
+    WriteLines(run / "tracker.json", {text});
+    ExpectContains(InvalidArgumentMessage([&] { formats::ReadRunRecord(run); }), why);
+  }
+}
+
 TEST(RunRecord, WriterRejectsBadRows) {
   const TempDir dir("run_writer");
   formats::RunWriter w(dir.path(), {});
