@@ -51,7 +51,7 @@ class DelayedScanner {
   bool finished() const { return finished_; }  // acquisition ended (duration reached)
 
   std::uint64_t acquired() const { return acquired_; }
-  std::uint64_t missed() const { return missed_; }    // acquisition slots lost
+  std::uint64_t missed() const { return missed_; }  // acquisition slots lost
   // Delivered but superseded by a newer one, or still queued when stopped.
   std::uint64_t dropped() const { return dropped_; }
 

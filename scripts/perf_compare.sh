@@ -5,11 +5,12 @@
 # ingest bench and a 20 s `echoservo demo`, and prints each figure with the ratio head/base.
 #
 #   scripts/perf_compare.sh BASE_REF [--reps N] [--demo-seconds S] [--volumes-per-class N]
-#                                    [--out DIR]
+#                                    [--out DIR] [--head-build DIR] [--build-only]
 #
 # The working tree is never modified: the base's sources are exported with `git archive` into
-# OUT/base-SHA/src (reused when present); the head builds from the working tree into
-# OUT/head/build. OUT (default build-perf/) also holds every run's raw output and summary.txt.
+# OUT/base-SHA/src and built in OUT/base-SHA/build (both reused when present); the head builds
+# from the working tree into build/ (the README's Release build; --head-build DIR for another).
+# OUT (default build-perf/) also holds every run's raw output and summary.txt.
 # Not part of CI (minutes of machine time). Exit status: 0, or 2 for bad arguments, 3 for a ref
 # that does not exist, 4 for a step that failed (the message names the ref and the step).
 set -euo pipefail
@@ -18,7 +19,7 @@ source scripts/lib/compiler.sh
 
 usage() {
   echo "usage: scripts/perf_compare.sh BASE_REF [--reps N] [--demo-seconds S]" \
-    "[--volumes-per-class N] [--out DIR]" >&2
+    "[--volumes-per-class N] [--out DIR] [--head-build DIR] [--build-only]" >&2
   exit 2
 }
 [[ $# -ge 1 ]] || usage
@@ -28,12 +29,16 @@ reps=2
 demo_s=20
 vpc=3
 out=build-perf
+head_build=build
+build_only=0
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --reps) reps="${2:-}"; shift 2 ;;
     --demo-seconds) demo_s="${2:-}"; shift 2 ;;
     --volumes-per-class) vpc="${2:-}"; shift 2 ;;
     --out) out="${2:-}"; shift 2 ;;
+    --head-build) head_build="${2:-}"; shift 2 ;;
+    --build-only) build_only=1; shift ;;
     *) usage ;;
   esac
 done
@@ -59,7 +64,6 @@ short=${sha:0:12}
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
 base_dir="$out/base-$short"
-head_dir="$out/head"
 runs="$out/runs-$(date +%Y%m%d-%H%M%S)"
 mkdir -p "$runs"
 echo "perf_compare: base ${base_ref} = ${short}, head = working tree of $(git rev-parse --short HEAD)" \
@@ -76,13 +80,24 @@ fi
 build() {  # name, source dir, build dir
   local log="$runs/build-$1.log"
   echo "perf_compare: building $1 in $3"
-  cmake -S "$2" -B "$3" -G Ninja -DCMAKE_BUILD_TYPE=Release -DECHOSERVO_BUILD_TESTS=OFF \
-    >"$log" 2>&1 || fail "$1 (${4}): configure" "$log"
+  if [[ -f "$3/CMakeCache.txt" ]]; then  # an existing build keeps its configuration
+    grep -q "CMAKE_BUILD_TYPE:STRING=Release" "$3/CMakeCache.txt" ||
+      fail "$1 (${4}): $3 is not a Release build" ""
+    : >"$log"
+  else
+    cmake -S "$2" -B "$3" -G Ninja -DCMAKE_BUILD_TYPE=Release -DECHOSERVO_BUILD_TESTS=OFF \
+      >"$log" 2>&1 || fail "$1 (${4}): configure" "$log"
+  fi
   cmake --build "$3" -j2 --target echoservo echoservo_ingest_bench >>"$log" 2>&1 ||
     fail "$1 (${4}): build" "$log"
 }
 build base "$base_dir/src" "$base_dir/build" "ref '${base_ref}' = ${short}"
-build head "$PWD" "$head_dir/build" "working tree"
+build head "$PWD" "$head_build" "working tree"
+head_bin="$(cd "$head_build" && pwd)/bin"
+if ((build_only)); then
+  echo "perf_compare: built base in $base_dir/build, head in $head_build"
+  exit 0
+fi
 
 # One round of every figure for one build; outputs go to runs/NAME-REP.*.
 round() {  # name, bin dir, rep
@@ -96,9 +111,9 @@ round() {  # name, bin dir, rep
 for ((r = 1; r <= reps; ++r)); do
   if ((r % 2)); then
     round base "$base_dir/build/bin" "$r"
-    round head "$head_dir/build/bin" "$r"
+    round head "$head_bin" "$r"
   else
-    round head "$head_dir/build/bin" "$r"
+    round head "$head_bin" "$r"
     round base "$base_dir/build/bin" "$r"
   fi
 done

@@ -22,6 +22,7 @@ packages=(
   xauth
   iproute2
   rt-tests
+  stress-ng linux-perf
   libnlopt-dev
   slurm-wlm
   munge
