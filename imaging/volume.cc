@@ -106,7 +106,8 @@ double Volume::Sample(const Eigen::Vector3d& physical_mm) const {
       return kNaN;
     const double c = std::clamp(index[a], 0.0, last);
     // Lower neighbour in [0, dims − 2] so that base + 1 is valid; a 1-voxel axis uses 0 twice.
-    base[a] = std::max(0, std::min(static_cast<int>(std::floor(c)), geometry_.dims[a] - 2));
+    // c ≥ 0: truncation is floor (std::floor is a library call without SSE 4.1).
+    base[a] = std::max(0, std::min(static_cast<int>(c), geometry_.dims[a] - 2));
     frac[a] = c - base[a];
   }
   const int step[3] = {geometry_.dims.x() > 1 ? 1 : 0, geometry_.dims.y() > 1 ? 1 : 0,

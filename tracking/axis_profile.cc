@@ -38,7 +38,8 @@ class Sampler {
       const double last = dims_[a] - 1;
       if (!(index[a] >= -tol && index[a] <= last + tol)) return kNaN;
       const double c = std::clamp(index[a], 0.0, last);
-      base[a] = std::max(0, std::min(static_cast<int>(std::floor(c)), dims_[a] - 2));
+      // c ≥ 0: truncation is floor (std::floor is a library call without SSE 4.1).
+      base[a] = std::max(0, std::min(static_cast<int>(c), dims_[a] - 2));
       frac[a] = c - base[a];
     }
     const std::ptrdiff_t sx = dims_.x() > 1 ? 1 : 0, sy = dims_.y() > 1 ? dims_.x() : 0,
@@ -180,13 +181,14 @@ class GaussianTables {
 // Squared residual of the best non-negative fit b + h·g + c·Φ (b free, h, c ≥ 0) to `amp`
 // for one surface position s0 (samples) and blur σ (samples); b, h, c in closed form for
 // each subset of the non-negative terms.
-double SurfaceFitResidual(const std::vector<double>& amp, double s0, double sigma) {
-  static const GaussianTables tables;
+// `terms(k, g, phi)` gives sample k's envelope g and its integral Φ.
+template <typename Terms>
+double SurfaceFitResidualOf(const std::vector<double>& amp, const Terms& terms) {
   // Normal equations of the rows (1, g_k, Φ_k), summed as scalars.
   double sg = 0, sp = 0, sgg = 0, sgp = 0, spp = 0, sa = 0, sag = 0, sap = 0, btb = 0;
   for (std::size_t k = 0; k < amp.size(); ++k) {
     double g, phi;
-    tables((static_cast<double>(k) - s0) / sigma, g, phi);
+    terms(k, g, phi);
     const double a = amp[k];
     sg += g;
     sp += phi;
@@ -232,6 +234,43 @@ double SurfaceFitResidual(const std::vector<double>& amp, double s0, double sigm
   return best;
 }
 
+const GaussianTables& Tables() {
+  static const GaussianTables tables;
+  return tables;
+}
+
+double SurfaceFitResidual(const std::vector<double>& amp, double s0, double sigma) {
+  const GaussianTables& tables = Tables();
+  return SurfaceFitResidualOf(amp, [&](std::size_t k, double& g, double& phi) {
+    tables((static_cast<double>(k) - s0) / sigma, g, phi);
+  });
+}
+
+// The residuals of one σ at s0 = i·step, i = 0 … count − 1, when 1/step is an integer q
+// (ds = 0.25 mm: step 0.5 sample): k − s0 = (q·k − i)·step exactly, so the envelope's values
+// are tabulated once per lattice offset and read by every s0 — the same numbers
+// SurfaceFitResidual computes, at a fraction of the table look-ups.
+void LatticeResiduals(const std::vector<double>& amp, double step, int q, int count, double sigma,
+                      std::vector<double>& g_at, std::vector<double>& phi_at,
+                      std::vector<double>& out) {
+  const GaussianTables& tables = Tables();
+  const int n = static_cast<int>(amp.size());
+  const int lo = -(count - 1), hi = q * (n - 1);  // q·k − i over k < n, i < count
+  g_at.resize(static_cast<std::size_t>(hi - lo + 1));
+  phi_at.resize(g_at.size());
+  for (int m = lo; m <= hi; ++m)
+    tables(static_cast<double>(m) * step / sigma, g_at[static_cast<std::size_t>(m - lo)],
+           phi_at[static_cast<std::size_t>(m - lo)]);
+  out.resize(static_cast<std::size_t>(count));
+  for (int i = 0; i < count; ++i)
+    out[static_cast<std::size_t>(i)] =
+        SurfaceFitResidualOf(amp, [&](std::size_t k, double& g, double& phi) {
+          const auto at = static_cast<std::size_t>(q * static_cast<int>(k) - i - lo);
+          g = g_at[at];
+          phi = phi_at[at];
+        });
+}
+
 // Surface position (in samples of `amp`) from an amplitude profile across a tissue surface:
 // the least-squares fit of b + h·g((s − s0)/σ) + c·Φ((s − s0)/σ) — background, the
 // interface's echo (the pulse envelope g) and the tissue's backscatter from the surface on
@@ -252,7 +291,26 @@ double FitSurfaceEcho(const std::vector<double>& amp, double ds) {
         }
       }
   };
-  search(0.0, n - 1, 0.125 / ds, 0.15, 1.0, 0.1);
+  const double step = 0.125 / ds;
+  const double q = 1.0 / step;
+  if (q == std::floor(q) && q >= 1 && q <= 64) {
+    // The coarse grid on the lattice s0 = i·step (the same s0, σ and order as `search`).
+    std::vector<double> g_at, phi_at, err;
+    int count = 0;
+    for (double s0 = 0.0; s0 <= n - 1 + 1e-9; s0 += step) ++count;
+    for (double sigma_mm = 0.15; sigma_mm <= 1.0 + 1e-9; sigma_mm += 0.1) {
+      LatticeResiduals(amp, step, static_cast<int>(q), count, sigma_mm / ds, g_at, phi_at, err);
+      double s0 = 0.0;
+      for (int i = 0; i < count; ++i, s0 += step)
+        if (err[static_cast<std::size_t>(i)] < best_err) {
+          best_err = err[static_cast<std::size_t>(i)];
+          best_s0 = s0;
+          best_sigma_mm = sigma_mm;
+        }
+    }
+  } else {
+    search(0.0, n - 1, step, 0.15, 1.0, 0.1);
+  }
   const double s0 = best_s0, sg = best_sigma_mm;
   search(std::max(0.0, s0 - 0.125 / ds), std::min(n - 1, s0 + 0.125 / ds), 0.0125 / ds,
          std::max(0.1, sg - 0.1), sg + 0.1, 0.025);
