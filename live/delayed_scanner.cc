@@ -22,10 +22,11 @@ void DelayedScanner::Stop() {
   stop_ = true;
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
-  // Volumes acquired but never taken: dropped too (acquired = delivered + dropped).
+}
+
+std::uint64_t DelayedScanner::dropped() const {
   std::lock_guard lock(m_);
-  dropped_ += queue_.size();
-  queue_.clear();
+  return dropped_ + queue_.size();
 }
 
 void DelayedScanner::Run() {

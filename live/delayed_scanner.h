@@ -52,8 +52,9 @@ class DelayedScanner {
 
   std::uint64_t acquired() const { return acquired_; }
   std::uint64_t missed() const { return missed_; }  // acquisition slots lost
-  // Delivered but superseded by a newer one, or still queued when stopped.
-  std::uint64_t dropped() const { return dropped_; }
+  // Delivered but superseded by a newer one, or acquired and still queued (acquired =
+  // delivered + dropped at any time).
+  std::uint64_t dropped() const;
 
  private:
   void Run();
@@ -63,7 +64,7 @@ class DelayedScanner {
   DelayedScannerOptions o_;
   std::atomic<bool> stop_{false}, finished_{false};
   std::atomic<std::uint64_t> acquired_{0}, missed_{0}, dropped_{0};
-  std::mutex m_;
+  mutable std::mutex m_;
   std::condition_variable cv_;
   std::deque<Delivery> queue_;
   std::thread thread_;

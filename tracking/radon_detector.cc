@@ -78,8 +78,7 @@ SearchLevels TrackingLevels(const imaging::Volume& v, const RadonDetectorOptions
                              roi.radius_mm - 4.0 * (f1 - f2) * std::cbrt(v.spacing_mm().prod())};
   SearchLevels L;
   L.coarse = MakeRadonLevel(v, MaxPool(v, f1, roi), o.max_depth_fraction, &roi, scene.coarse);
-  L.fine =
-      MakeRadonLevel(v, MaxPool(v, f2, fine_roi), o.max_depth_fraction, &fine_roi, scene.fine);
+  L.fine = MakeRadonLevel(v, MaxPool(v, f2, fine_roi), o.max_depth_fraction, &fine_roi, scene.fine);
   return L;
 }
 
