@@ -67,18 +67,15 @@ SearchLevels MeasuredLevels(const imaging::Volume& v, const RadonDetectorOptions
 
 // Levels of the tracking region alone, with the scene's known intensity levels: only the
 // voxels near the previous axis are read.
-// The fine level's region is the coarse one's less the margin counted in coarse bins (4 of
-// them: ring, footprint, tilt), counted in its own, half as wide: the fine level is read for
-// the refinement near the coarse line and the peaks within the tracking window, whose rings
-// and footprints are fine bins. Its cells are most of a tracked frame's reading and splats.
 SearchLevels TrackingLevels(const imaging::Volume& v, const RadonDetectorOptions& o,
                             const RadonWindow& roi, const SceneBaseline& scene) {
   const int f1 = o.coarse_factor, f2 = std::max(1, f1 / 2);
-  const RadonWindow fine_roi{roi.line,
-                             roi.radius_mm - 4.0 * (f1 - f2) * std::cbrt(v.spacing_mm().prod())};
   SearchLevels L;
+  // One region for both levels: the fine level is read for the refinement near the coarse
+  // line (up to 2 coarse bins beyond the window) and for the peaks within the window, each
+  // with its ring and footprint — as far out as the coarse level's margin reaches.
   L.coarse = MakeRadonLevel(v, MaxPool(v, f1, roi), o.max_depth_fraction, &roi, scene.coarse);
-  L.fine = MakeRadonLevel(v, MaxPool(v, f2, fine_roi), o.max_depth_fraction, &fine_roi, scene.fine);
+  L.fine = MakeRadonLevel(v, MaxPool(v, f2, roi), o.max_depth_fraction, &roi, scene.fine);
   return L;
 }
 
