@@ -903,6 +903,36 @@ RadonSearchResult SearchDirections(const RadonLevel& L, std::span<const Eigen::V
   return b;
 }
 
+namespace {
+
+// The indices of the top_k best of `scores`, best first (equal scores: the earlier first).
+std::vector<std::size_t> BestIndices(const std::vector<double>& scores, int top_k) {
+  std::vector<std::size_t> order(scores.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  const std::size_t k = std::min(order.size(), static_cast<std::size_t>(std::max(0, top_k)));
+  std::partial_sort(order.begin(), order.begin() + static_cast<long>(k), order.end(),
+                    [&](std::size_t a, std::size_t c) {
+                      return scores[a] > scores[c] || (scores[a] == scores[c] && a < c);
+                    });
+  order.resize(k);
+  return order;
+}
+
+// A two-stage search's result: the first stage's `b`, its peak replaced by the second
+// stage's (`second`) when that scores higher.
+RadonSearchResult WithSecondStage(const RadonLevel& L, const std::vector<Eigen::Vector3d>& second,
+                                  const RadonWindow* window, RadonSearchResult b) {
+  if (second.empty()) return b;
+  const RadonSearchResult r = SearchDirections(L, second, window);
+  if (r.peak.score > b.peak.score) {
+    b.peak = r.peak;
+    b.direction = r.direction;
+  }
+  return b;
+}
+
+}  // namespace
+
 RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& L,
                                                std::span<const Eigen::Vector3d> dirs,
                                                const CoarseToFineOptions& o,
@@ -913,30 +943,18 @@ RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& L,
   for (std::size_t i = 0; i < dirs.size(); i += stride) first.push_back(dirs[i]);
   RadonSearchResult b = SearchDirections(L, first, window);
   // Stage 2: the other directions near the top_k of stage 1.
-  std::vector<std::size_t> order(first.size());
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  const std::size_t k = std::min(order.size(), static_cast<std::size_t>(std::max(0, o.top_k)));
-  std::partial_sort(order.begin(), order.begin() + static_cast<long>(k), order.end(),
-                    [&](std::size_t a, std::size_t c) {
-                      return b.scores[a] > b.scores[c] || (b.scores[a] == b.scores[c] && a < c);
-                    });
+  const std::vector<std::size_t> best = BestIndices(b.scores, o.top_k);
   const double cos_near = std::cos(o.neighbour_rad);
   std::vector<Eigen::Vector3d> second;
   for (std::size_t i = 0; i < dirs.size(); ++i) {
     if (i % stride == 0) continue;
-    for (std::size_t t = 0; t < k; ++t)
-      if (std::abs(dirs[i].dot(first[order[t]])) >= cos_near) {
+    for (const std::size_t t : best)
+      if (std::abs(dirs[i].dot(first[t])) >= cos_near) {
         second.push_back(dirs[i]);
         break;
       }
   }
-  if (second.empty()) return b;
-  const RadonSearchResult r = SearchDirections(L, second, window);
-  if (r.peak.score > b.peak.score) {
-    b.peak = r.peak;
-    b.direction = r.direction;
-  }
-  return b;
+  return WithSecondStage(L, second, window, std::move(b));
 }
 
 RadonSearchResult SearchConeCoarseToFine(const RadonLevel& L, const Eigen::Vector3d& d,
@@ -953,17 +971,10 @@ RadonSearchResult SearchConeCoarseToFine(const RadonLevel& L, const Eigen::Vecto
         first.push_back(dirs[static_cast<std::size_t>(i * steps + j)]);
       }
   RadonSearchResult b = SearchDirections(L, first, window);
-  std::vector<std::size_t> order(first.size());
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  const std::size_t k = std::min(order.size(), static_cast<std::size_t>(std::max(0, top_k)));
-  std::partial_sort(order.begin(), order.begin() + static_cast<long>(k), order.end(),
-                    [&](std::size_t a, std::size_t c) {
-                      return b.scores[a] > b.scores[c] || (b.scores[a] == b.scores[c] && a < c);
-                    });
   std::vector<char> take(dirs.size(), 0);
-  for (std::size_t t = 0; t < k; ++t) {
-    if (b.scores[order[t]] <= 0) break;
-    const int i0 = first_ij[order[t]] / steps, j0 = first_ij[order[t]] % steps;
+  for (const std::size_t t : BestIndices(b.scores, top_k)) {
+    if (b.scores[t] <= 0) break;
+    const int i0 = first_ij[t] / steps, j0 = first_ij[t] % steps;
     for (int i = std::max(0, i0 - 1); i <= std::min(steps - 1, i0 + 1); ++i)
       for (int j = std::max(0, j0 - 1); j <= std::min(steps - 1, j0 + 1); ++j)
         if (!(on_subgrid(i) && on_subgrid(j))) take[static_cast<std::size_t>(i * steps + j)] = 1;
@@ -971,13 +982,7 @@ RadonSearchResult SearchConeCoarseToFine(const RadonLevel& L, const Eigen::Vecto
   std::vector<Eigen::Vector3d> second;
   for (std::size_t i = 0; i < dirs.size(); ++i)
     if (take[i]) second.push_back(dirs[i]);
-  if (second.empty()) return b;
-  const RadonSearchResult r = SearchDirections(L, second, window);
-  if (r.peak.score > b.peak.score) {
-    b.peak = r.peak;
-    b.direction = r.direction;
-  }
-  return b;
+  return WithSecondStage(L, second, window, std::move(b));
 }
 
 }  // namespace echoservo::tracking
