@@ -64,7 +64,8 @@ def demo_figures(path):
         "demo latency p99 ms": j["latency_ms"]["p99"],
         "demo volumes tracked": j.get("volumes"),
         "demo missed acquisitions": j.get("missed_acquisitions"),
-        "demo dropped (shed) volumes": j.get("dropped_frames"),
+        "demo shed volumes (stale, tracker)": j.get("shed_volumes"),
+        "demo dropped frames (missed + shed + not found)": j.get("dropped_frames"),
         "demo servo overruns": j.get("servo_overruns"),
     }
     for k, label in (("wakeup_latency_us", "wake-up"), ("cycle_duration_us", "cycle")):
