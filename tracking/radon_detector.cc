@@ -259,10 +259,10 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
     // The confidence is a product of factors ≤ 1: a line whose peak factor alone is below
     // min_confidence cannot be found, and is not evaluated (a catheter-free volume's
     // runners-up, usually).
-    if (scene.valid && options_.min_confidence > 0 &&
-        PeakConfidence(RobustZ(scene, peak.score)) < options_.min_confidence) {
+    const double z = scene.valid ? RobustZ(scene, peak.score) : 0.0;
+    if (scene.valid && options_.min_confidence > 0 && PeakConfidence(z) < options_.min_confidence) {
       if (c == 0) {
-        best.peak_z = RobustZ(scene, peak.score);
+        best.peak_z = z;
         best.tracked = previous != nullptr;
       }
       continue;
