@@ -401,11 +401,11 @@ void FillDemoCounts(const ServoNode& servo, const TrackerRunResult& tr, const De
   result.contact_reported = sink.contact_reported;
   result.contact_true_reported = sink.contact_true_reported;
   result.contact_reported_apart = sink.contact_reported_apart;
-  result.volumes = tr.source.acquired;
+  result.volumes = tr.volumes.acquired;
   result.detected = tr.stats.measured;
   result.missed_acquisitions = tr.volumes.missed;
   result.shed_volumes = tr.volumes.shed;
-  result.dropped_frames = tr.source.dropped + tr.stats.not_found + tr.source.missed;
+  result.dropped_frames = tr.volumes.shed + tr.volumes.not_found + tr.volumes.missed;
   result.tracker_errors = tr.stats.errors;
   result.volumes_recorded = tr.recorder.written;
   result.volumes_record_dropped = tr.recorder.dropped;
