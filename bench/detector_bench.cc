@@ -289,6 +289,22 @@ void BM_TrackingLevels(benchmark::State& state) {
 }
 DETECTOR_BENCHMARK(BM_TrackingLevels);
 
+// The same levels as the detector builds them: the volume read once (MaxPoolNested).
+void BM_TrackingLevelsNested(benchmark::State& state) {
+  const RadonDetectorOptions o;
+  Cycle(state, [&](const Sample& s) {
+    const RadonWindow roi{s.previous.axis, o.tracking_window_mm + 4 * s.coarse.bin_mm};
+    const NestedGrids g = MaxPoolNested(s.volume, 2, 2, roi);
+    const RadonLevel coarse =
+        MakeRadonLevel(s.volume, g.coarse, o.max_depth_fraction, &roi, s.previous.baseline.coarse);
+    const RadonLevel fine =
+        MakeRadonLevel(s.volume, g.fine, o.max_depth_fraction, &roi, s.previous.baseline.fine);
+    benchmark::DoNotOptimize(coarse.cells.data());
+    benchmark::DoNotOptimize(fine.cells.data());
+  });
+}
+DETECTOR_BENCHMARK(BM_TrackingLevelsNested);
+
 }  // namespace
 
 BENCHMARK_MAIN();

@@ -95,32 +95,7 @@ Eigen::Vector3d Volume::PhysicalToIndex(const Eigen::Vector3d& physical_mm) cons
 }
 
 double Volume::Sample(const Eigen::Vector3d& physical_mm) const {
-  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-  const Eigen::Vector3d index = PhysicalToIndex(physical_mm);
-  int base[3];
-  double frac[3];
-  for (int a = 0; a < 3; ++a) {
-    const double last = geometry_.dims[a] - 1;
-    // Written so that NaN fails the test too.
-    if (!(index[a] >= -kInsideToleranceIndex && index[a] <= last + kInsideToleranceIndex))
-      return kNaN;
-    const double c = std::clamp(index[a], 0.0, last);
-    // Lower neighbour in [0, dims − 2] so that base + 1 is valid; a 1-voxel axis uses 0 twice.
-    // c ≥ 0: truncation is floor (std::floor is a library call without SSE 4.1).
-    base[a] = std::max(0, std::min(static_cast<int>(c), geometry_.dims[a] - 2));
-    frac[a] = c - base[a];
-  }
-  const int step[3] = {geometry_.dims.x() > 1 ? 1 : 0, geometry_.dims.y() > 1 ? 1 : 0,
-                       geometry_.dims.z() > 1 ? 1 : 0};
-  double value = 0.0;
-  for (int corner = 0; corner < 8; ++corner) {
-    const int dx = corner & 1, dy = (corner >> 1) & 1, dz = (corner >> 2) & 1;
-    const double w = (dx ? frac[0] : 1.0 - frac[0]) * (dy ? frac[1] : 1.0 - frac[1]) *
-                     (dz ? frac[2] : 1.0 - frac[2]);
-    // No branch on w = 0 (a corner outside a 1-voxel axis repeats a valid one): it adds 0.
-    value += w * at(base[0] + dx * step[0], base[1] + dy * step[1], base[2] + dz * step[2]);
-  }
-  return value;
+  return VolumeSampler(*this)(physical_mm);
 }
 
 Eigen::AlignedBox3d Volume::BoundingBoxMm() const {

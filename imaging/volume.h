@@ -12,9 +12,11 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cassert>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -69,12 +71,14 @@ class Volume {
   // its transpose.
   Eigen::Vector3d IndexToPhysical(const Eigen::Vector3d& index) const;
   Eigen::Vector3d PhysicalToIndex(const Eigen::Vector3d& physical_mm) const;
+  // The linear part of PhysicalToIndex: (direction · diag(spacing_mm))⁻¹.
+  const Eigen::Matrix3d& physical_to_index() const { return physical_to_index_; }
 
   // Trilinear interpolation of the voxel values at an image-frame point (mm). The volume
   // is defined between voxel centres, i.e. for continuous indices in [0, dims − 1] on each
   // axis (a 1-voxel axis accepts only index 0); a point outside, or a non-finite one,
   // returns quiet NaN. A margin of kInsideToleranceIndex voxel absorbs rounding, so the
-  // corner voxel centres themselves sample exactly.
+  // corner voxel centres themselves sample exactly. (VolumeSampler below: the same, inlined.)
   static constexpr double kInsideToleranceIndex = 1e-9;
   double Sample(const Eigen::Vector3d& physical_mm) const;
 
@@ -125,6 +129,57 @@ class Volume {
   Eigen::Isometry3d probe_to_reference_ = Eigen::Isometry3d::Identity();
   double timestamp_s_ = 0.0;
   std::int64_t frame_index_ = 0;
+};
+
+// Volume::Sample for loops that take thousands of samples (profiles, tube checks): inlined,
+// the geometry copied once; Volume::Sample calls it, so the values are the same. Holds a
+// pointer to the voxels: valid while the volume lives.
+class VolumeSampler {
+ public:
+  explicit VolumeSampler(const Volume& v)
+      : dims_(v.dims()),
+        origin_(v.origin_mm()),
+        to_index_(v.physical_to_index()),
+        voxels_(v.voxels().data()) {}
+
+  double operator()(const Eigen::Vector3d& physical_mm) const {
+    const Eigen::Vector3d index = to_index_ * (physical_mm - origin_);
+    int base[3];
+    double frac[3];
+    for (int a = 0; a < 3; ++a) {
+      const double last = dims_[a] - 1;
+      // Written so that NaN fails the test too.
+      if (!(index[a] >= -Volume::kInsideToleranceIndex &&
+            index[a] <= last + Volume::kInsideToleranceIndex))
+        return std::numeric_limits<double>::quiet_NaN();
+      const double c = std::clamp(index[a], 0.0, last);
+      // Lower neighbour in [0, dims − 2] so that base + 1 is valid; a 1-voxel axis uses 0
+      // twice. c ≥ 0: truncation is floor (std::floor is a library call without SSE 4.1).
+      base[a] = std::max(0, std::min(static_cast<int>(c), dims_[a] - 2));
+      frac[a] = c - base[a];
+    }
+    const std::ptrdiff_t sx = dims_.x() > 1 ? 1 : 0, sy = dims_.y() > 1 ? dims_.x() : 0,
+                         sz =
+                             dims_.z() > 1 ? static_cast<std::ptrdiff_t>(dims_.x()) * dims_.y() : 0;
+    const std::uint8_t* b0 = voxels_ + base[0] +
+                             static_cast<std::ptrdiff_t>(dims_.x()) *
+                                 (base[1] + static_cast<std::ptrdiff_t>(dims_.y()) * base[2]);
+    double value = 0.0;
+    for (int corner = 0; corner < 8; ++corner) {
+      const int dx = corner & 1, dy = (corner >> 1) & 1, dz = (corner >> 2) & 1;
+      const double w = (dx ? frac[0] : 1.0 - frac[0]) * (dy ? frac[1] : 1.0 - frac[1]) *
+                       (dz ? frac[2] : 1.0 - frac[2]);
+      // No branch on w = 0 (a corner outside a 1-voxel axis repeats a valid one): it adds 0.
+      value += w * b0[dx * sx + dy * sy + dz * sz];
+    }
+    return value;
+  }
+
+ private:
+  Eigen::Vector3i dims_;
+  Eigen::Vector3d origin_;
+  Eigen::Matrix3d to_index_;
+  const std::uint8_t* voxels_;
 };
 
 }  // namespace echoservo::imaging

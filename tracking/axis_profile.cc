@@ -18,52 +18,7 @@
 namespace echoservo::tracking {
 namespace {
 
-// Volume::Sample inlined: the same index arithmetic and corner sum (so the same values),
-// without a call and at()'s index math per corner — a profile takes thousands of samples.
-class Sampler {
- public:
-  explicit Sampler(const imaging::Volume& v)
-      : dims_(v.dims()),
-        origin_(v.origin_mm()),
-        to_index_(Eigen::Matrix3d(v.direction() * v.spacing_mm().asDiagonal()).inverse()),
-        voxels_(v.voxels().data()) {}
-
-  double operator()(const Eigen::Vector3d& p) const {
-    constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-    constexpr double tol = imaging::Volume::kInsideToleranceIndex;
-    const Eigen::Vector3d index = to_index_ * (p - origin_);
-    int base[3];
-    double frac[3];
-    for (int a = 0; a < 3; ++a) {
-      const double last = dims_[a] - 1;
-      if (!(index[a] >= -tol && index[a] <= last + tol)) return kNaN;
-      const double c = std::clamp(index[a], 0.0, last);
-      // c ≥ 0: truncation is floor (std::floor is a library call without SSE 4.1).
-      base[a] = std::max(0, std::min(static_cast<int>(c), dims_[a] - 2));
-      frac[a] = c - base[a];
-    }
-    const std::ptrdiff_t sx = dims_.x() > 1 ? 1 : 0, sy = dims_.y() > 1 ? dims_.x() : 0,
-                         sz =
-                             dims_.z() > 1 ? static_cast<std::ptrdiff_t>(dims_.x()) * dims_.y() : 0;
-    const std::uint8_t* b0 = voxels_ + base[0] +
-                             static_cast<std::ptrdiff_t>(dims_.x()) *
-                                 (base[1] + static_cast<std::ptrdiff_t>(dims_.y()) * base[2]);
-    double value = 0.0;
-    for (int corner = 0; corner < 8; ++corner) {
-      const int dx = corner & 1, dy = (corner >> 1) & 1, dz = (corner >> 2) & 1;
-      const double w = (dx ? frac[0] : 1.0 - frac[0]) * (dy ? frac[1] : 1.0 - frac[1]) *
-                       (dz ? frac[2] : 1.0 - frac[2]);
-      value += w * b0[dx * sx + dy * sy + dz * sz];  // no branch on w = 0: it adds 0 exactly
-    }
-    return value;
-  }
-
- private:
-  Eigen::Vector3i dims_;
-  Eigen::Vector3d origin_;
-  Eigen::Matrix3d to_index_;
-  const std::uint8_t* voxels_;
-};
+using Sampler = imaging::VolumeSampler;
 
 // Max (or mean) of the samples over a small disc ⟂ the axis (the centre and 8 points at
 // radius r, offsets computed once) at s. The max keeps a thin bright line bright under a
@@ -479,14 +434,56 @@ TipEstimate FindTip(const imaging::Volume& v, const Line3& axis, double bg,
 
 namespace {
 
-// One surface position along a profile (samples `ds` apart, s = s_first + i·ds): the first
-// rise above the background (median and robust spread of [bg_lo, bg_hi)) by
-// max(12, 10 % of the line level above the volume's background, 5 × spread), walked back to
-// where the profile last stood within half that rise, then located by FitSurfaceEcho over
-// −1.5…+2.5 mm around that onset. Searched from index `from`; NaN when there is none.
-double FirstSurface(const std::vector<double>& fp, double ds, int from, int bg_lo, int bg_hi,
-                    double rise_floor, double dynamic_range_db) {
+// A profile's samples x(i·ds), i = 0, 1, …, computed on demand: up to `limit` samples, or
+// to the first NaN (where the profile leaves the volume). A surface is usually found in the
+// first centimetres of a profile that runs to the far side of the volume.
+class LazyProfile {
+ public:
+  LazyProfile(const DiscProfile& profile, double ds, int limit)
+      : profile_(profile), ds_(ds), limit_(limit) {}
+
+  // The samples after computing the first n (fewer when the profile ends before).
+  const std::vector<double>& Upto(int n) {
+    n = std::min(n, limit_);
+    while (!ended_ && static_cast<int>(x_.size()) < n) {
+      const double x = profile_(static_cast<double>(x_.size()) * ds_);
+      if (std::isnan(x)) {
+        ended_ = true;
+        break;
+      }
+      x_.push_back(x);
+    }
+    if (static_cast<int>(x_.size()) >= limit_) ended_ = true;
+    return x_;
+  }
+  // Every sample is computed: the profile ended or reached `limit`.
+  bool complete() const { return ended_; }
+
+ private:
+  const DiscProfile& profile_;
+  double ds_;
+  int limit_;
+  std::vector<double> x_;
+  bool ended_ = false;
+};
+
+// The number of samples s = 0, ds, 2·ds, … with s ≤ length_mm (s accumulated as a loop
+// would: ds = 0.25 adds exactly).
+int SampleCount(double length_mm, double ds) {
+  int n = 0;
+  for (double s = 0; s <= length_mm; s += ds) ++n;
+  return n;
+}
+
+// FirstSurface (below) on the samples so far, `whole` when they are all the profile's:
+// the result, or nothing when it may depend on samples not computed yet (a 3-sample mean at
+// the last one, the background window or the fit window past the end, no rise yet).
+std::optional<double> FirstSurfaceOn(const std::vector<double>& fp, bool whole, double ds, int from,
+                                     int bg_lo, int bg_hi, double rise_floor,
+                                     double dynamic_range_db) {
   const int M = static_cast<int>(fp.size());
+  const double none = std::numeric_limits<double>::quiet_NaN();
+  if (!whole && M < bg_hi) return std::nullopt;
   // 0.75 mm box: shorter than the echo of an interface (a pulse's envelope), longer than
   // one speckle grain's sampling.
   std::vector<double> fs(static_cast<std::size_t>(M), 0);
@@ -505,13 +502,14 @@ double FirstSurface(const std::vector<double>& fp, double ds, int from, int bg_l
   {
     std::vector<double> near;
     for (int i = std::max(0, bg_lo); i < std::min(M, bg_hi); ++i) near.push_back(at(i));
-    if (near.empty()) return std::numeric_limits<double>::quiet_NaN();
+    if (near.empty()) return none;  // an empty window (M ≥ bg_hi when not whole)
     const MedianMad m = ComputeMedianMad(near);
     fbg = m.median;
     spread = 1.4826 * m.mad;
   }
   const double rise = std::max(rise_floor, 5.0 * spread);
-  for (int i = std::max(0, from); i < M; ++i) {
+  const int last = whole ? M - 1 : M - 2;  // the last sample whose mean is final
+  for (int i = std::max(0, from); i <= last; ++i) {
     if (at(i) <= fbg + rise) continue;
     // The tissue surface images as the pulse envelope centred on it plus the tissue's own
     // backscatter from the surface on, both blurred by the point-spread function: fit that
@@ -519,14 +517,31 @@ double FirstSurface(const std::vector<double>& fp, double ds, int from, int bg_l
     // speckled surface can cross the threshold a little inside it).
     int onset = i;
     while (onset > from && at(onset - 1) > fbg + 0.5 * rise) --onset;
+    const int reach = onset + static_cast<int>(2.5 / ds);
+    if (!whole && reach > M - 1) return std::nullopt;
     std::vector<double> amp;
-    const int i0 = std::max(0, onset - static_cast<int>(1.5 / ds)),
-              i1 = std::min(M - 1, onset + static_cast<int>(2.5 / ds));
+    const int i0 = std::max(0, onset - static_cast<int>(1.5 / ds)), i1 = std::min(M - 1, reach);
     for (int k = i0; k <= i1; ++k)
       amp.push_back(EchoAmplitude(fp[static_cast<std::size_t>(k)], dynamic_range_db));
     return i0 + FitSurfaceEcho(amp, ds);
   }
-  return std::numeric_limits<double>::quiet_NaN();
+  return whole ? std::optional<double>(none) : std::nullopt;
+}
+
+// One surface position along a profile (samples `ds` apart, s = s_first + i·ds): the first
+// rise above the background (median and robust spread of [bg_lo, bg_hi)) by
+// max(12, 10 % of the line level above the volume's background, 5 × spread), walked back to
+// where the profile last stood within half that rise, then located by FitSurfaceEcho over
+// −1.5…+2.5 mm around that onset. Searched from index `from`; NaN when there is none. The
+// profile is computed as far as the answer needs (the same answer as on all of it).
+double FirstSurface(LazyProfile& profile, double ds, int from, int bg_lo, int bg_hi,
+                    double rise_floor, double dynamic_range_db) {
+  for (int n = std::max(from, bg_hi) + 64;; n *= 2) {
+    const std::vector<double>& fp = profile.Upto(n);
+    if (const auto r = FirstSurfaceOn(fp, profile.complete(), ds, from, bg_lo, bg_hi, rise_floor,
+                                      dynamic_range_db))
+      return *r;
+  }
 }
 
 // The tissue surface beside the tip: rays parallel to the axis at lateral_radius_mm around
@@ -569,15 +584,10 @@ LateralSurface FindLateralSurface(const imaging::Volume& v, const TipEstimate& t
     const Line3 ray{tip.tip_mm - back * tip.axis.direction + o, tip.axis.direction};
     Eigen::Vector3d ru, rw;
     PlaneBasis(ray.direction, ru, rw);
-    const DiscProfile profile(v, ray, ru, rw, 0.5, DiscProfile::Reduce::kMean);
-    std::vector<double> fp;
-    for (double s = 0; s <= back + std::min(ext, kLateralReachMm); s += ds) {
-      const double x = profile(s);
-      if (std::isnan(x)) break;
-      fp.push_back(x);
-    }
-    if (static_cast<int>(fp.size()) < bg_n + 8) return;
-    const double i = FirstSurface(fp, ds, bg_n, 0, bg_n, rise_floor, edge.dynamic_range_db);
+    const DiscProfile disc(v, ray, ru, rw, 0.5, DiscProfile::Reduce::kMean);
+    LazyProfile profile(disc, ds, SampleCount(back + std::min(ext, kLateralReachMm), ds));
+    if (static_cast<int>(profile.Upto(bg_n + 8).size()) < bg_n + 8) return;
+    const double i = FirstSurface(profile, ds, bg_n, 0, bg_n, rise_floor, edge.dynamic_range_db);
     if (!std::isnan(i)) ray_s[static_cast<std::size_t>(k)] = i * ds - back;
   });
   std::vector<Eigen::Vector2d> xy;
@@ -674,18 +684,11 @@ TargetEstimate FindTarget(const imaging::Volume& v, const TipEstimate& tip, doub
   // Axial: forward from the tip, the mean over a 0.75 mm disc (the tissue ahead is a broad
   // surface, and averaging nine samples of its speckle steadies the profile where a max
   // would chase speckle peaks).
-  std::vector<double> fp;
-  {
-    const Line3 fwd{tip.tip_mm, line.direction};
-    Eigen::Vector3d fu, fw;
-    PlaneBasis(fwd.direction, fu, fw);
-    const DiscProfile profile(v, fwd, fu, fw, 0.75, DiscProfile::Reduce::kMean);
-    for (double s = 0; s <= ext * 2; s += ds) {
-      const double x = profile(s);
-      if (std::isnan(x)) break;
-      fp.push_back(x);
-    }
-  }
+  const Line3 fwd{tip.tip_mm, line.direction};
+  Eigen::Vector3d fu, fw;
+  PlaneBasis(fwd.direction, fu, fw);
+  const DiscProfile disc(v, fwd, fu, fw, 0.75, DiscProfile::Reduce::kMean);
+  LazyProfile fp(disc, ds, SampleCount(ext * 2, ds));
   // From `from_mm` past the tip, the background measured over the next 4 mm (blood, or a
   // tank's water, scatters too; its speckle must not pass for the surface).
   // (or up to `bg_end_mm`, at least 1 mm, when a surface is expected sooner).
@@ -700,10 +703,11 @@ TargetEstimate FindTarget(const imaging::Volume& v, const TipEstimate& tip, doub
   auto refine = [&](double s_mm) {
     const int i0 = static_cast<int>(std::lround((s_mm - 1.5) / ds));
     const int i1 = static_cast<int>(std::lround((s_mm + 2.5) / ds));
-    if (i0 * ds < 1.0 || i1 >= static_cast<int>(fp.size())) return s_mm;
+    if (i0 * ds < 1.0 || i1 >= static_cast<int>(fp.Upto(i1 + 1).size())) return s_mm;
+    const std::vector<double>& x = fp.Upto(i1 + 1);
     std::vector<double> amp;
     for (int k = i0; k <= i1; ++k)
-      amp.push_back(EchoAmplitude(fp[static_cast<std::size_t>(k)], edge.dynamic_range_db));
+      amp.push_back(EchoAmplitude(x[static_cast<std::size_t>(k)], edge.dynamic_range_db));
     const double s = (i0 + FitSurfaceEcho(amp, ds)) * ds;
     return std::abs(s - s_mm) <= 0.75 ? s : s_mm;
   };

@@ -137,6 +137,41 @@ std::vector<Candidate> GatherCandidates(const imaging::Volume& v, const Line3& l
   return out;
 }
 
+// Whether every point within `radius` of `inner` (in the volume) lies within `outer_radius`
+// of `outer`: then a gather around `inner` is the outer gather's candidates near `inner`.
+// A point x within r of inner, projecting onto it at q, is within r + d(q, outer) of outer;
+// d(q, outer) along inner is the root of a convex quadratic, largest at an end of the
+// volume's span along inner.
+bool NestedCylinder(const imaging::Volume& v, const Line3& outer, double outer_radius,
+                    const Line3& inner, double radius) {
+  const Eigen::AlignedBox3d box = v.BoundingBoxMm();
+  double s0 = std::numeric_limits<double>::infinity(), s1 = -s0;
+  for (int c = 0; c < 8; ++c) {
+    const double s = (box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c)) - inner.point)
+                         .dot(inner.direction);
+    s0 = std::min(s0, s);
+    s1 = std::max(s1, s);
+  }
+  const double slack = outer_radius - radius;
+  return slack > 0 && PointToLineDistance(outer, inner.point + s0 * inner.direction) < slack &&
+         PointToLineDistance(outer, inner.point + s1 * inner.direction) < slack;
+}
+
+// The candidates of `pool` (positions relative to the fit origin) within `radius` of
+// `line` (relative too), in the same order.
+std::vector<Candidate> WithinRadius(const std::vector<Candidate>& pool, const Line3& line,
+                                    double radius) {
+  std::vector<Candidate> out;
+  out.reserve(pool.size());
+  const double r2 = radius * radius;
+  for (const auto& c : pool) {
+    const Eigen::Vector3d r = c.p - line.point;
+    const double t = r.dot(line.direction);
+    if (r.squaredNorm() - t * t <= r2) out.push_back(c);
+  }
+  return out;
+}
+
 // Carries the first-echo answers of `before` (an earlier pass's candidates) over to the same
 // voxels in `after`; both are in scan order, so one merge finds them.
 void CarryFirstEchoAnswers(const std::vector<Candidate>& before, std::vector<Candidate>& after) {
@@ -325,24 +360,34 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
   // Unknown beams: no first-echo rule and no near-wall offset (the symmetric centre-line fit).
   const FirstEchoTest first_echo(v, beams.known() ? o.first_echo_mm : 0.0, beams, start.direction);
   std::vector<Candidate> pool;
-  double threshold = bg;
+  Line3 pool_line = line;  // the cylinder `pool` was gathered in (relative to the origin)
+  double pool_radius = 0, threshold = bg;
   for (double f : {1.0, 0.8, 0.6}) {
-    std::vector<Candidate> next = GatherCandidates(v, Line3{line.point + origin, line.direction},
-                                                   f * o.fit_radius_mm, threshold, origin);
-    if (pool.empty() && o.echo_level_fraction > 0 && !next.empty()) {
-      // The catheter's echo level: the 99th percentile of the cylinder's voxels above the
-      // background (the catheter fills a few per cent of it; speckle the rest). Only voxels
-      // above `echo_level_fraction` of the way to it are echoes of the catheter.
-      std::vector<std::uint8_t> values(next.size());
-      for (std::size_t i = 0; i < next.size(); ++i) values[i] = next[i].value;
-      auto q = values.begin() + static_cast<long>(values.size() * 99 / 100);
-      std::nth_element(values.begin(), q, values.end());
-      threshold = bg + o.echo_level_fraction * (*q - bg);
-      std::erase_if(next, [&](const Candidate& c) { return c.value <= threshold; });
-      for (auto& c : next) c.w = (c.value - threshold) * (c.value - threshold);
+    const double radius = f * o.fit_radius_mm;
+    // A narrower cylinder within the last gathered one is a subset of its candidates (same
+    // threshold, first-echo answers kept); otherwise the volume is read again.
+    if (!pool.empty() && NestedCylinder(v, pool_line, pool_radius, line, radius)) {
+      pool = WithinRadius(pool, line, radius);
+    } else {
+      std::vector<Candidate> next = GatherCandidates(v, Line3{line.point + origin, line.direction},
+                                                     radius, threshold, origin);
+      pool_line = line;
+      pool_radius = radius;
+      if (pool.empty() && o.echo_level_fraction > 0 && !next.empty()) {
+        // The catheter's echo level: the 99th percentile of the cylinder's voxels above the
+        // background (the catheter fills a few per cent of it; speckle the rest). Only voxels
+        // above `echo_level_fraction` of the way to it are echoes of the catheter.
+        std::vector<std::uint8_t> values(next.size());
+        for (std::size_t i = 0; i < next.size(); ++i) values[i] = next[i].value;
+        auto q = values.begin() + static_cast<long>(values.size() * 99 / 100);
+        std::nth_element(values.begin(), q, values.end());
+        threshold = bg + o.echo_level_fraction * (*q - bg);
+        std::erase_if(next, [&](const Candidate& c) { return c.value <= threshold; });
+        for (auto& c : next) c.w = (c.value - threshold) * (c.value - threshold);
+      }
+      CarryFirstEchoAnswers(pool, next);
+      pool = std::move(next);
     }
-    CarryFirstEchoAnswers(pool, next);
-    pool = std::move(next);
     echoes = FirstEchoes(pool, first_echo, origin);
     if (echoes.size() < 4) return std::nullopt;
     const auto l = WeightedTls(echoes);

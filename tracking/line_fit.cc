@@ -20,10 +20,11 @@ void Require(bool ok, const std::string& where, const std::string& field, const 
 // isotropically (Gaussian) around the line.
 const double kRayleighMedianPerSigma = std::sqrt(2.0 * std::log(2.0));
 
+// The messages are built only on failure: these checks run on every point of every fit.
 void RequireFinitePoints(std::span<const Eigen::Vector3d> points, const std::string& where) {
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    Require(points[i].allFinite(), where, "points[" + std::to_string(i) + "]", "must be finite");
-  }
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (!points[i].allFinite())
+      Require(false, where, "points[" + std::to_string(i) + "]", "must be finite");
 }
 
 // Weighted TLS fit without input checks. Empty optional when fewer than 2 distinct points
@@ -122,10 +123,9 @@ Line3 FitLine(std::span<const Eigen::Vector3d> points, std::span<const double> w
     Require(weights.size() == points.size(), where, "weights",
             "must be empty or have one entry per point (" + std::to_string(weights.size()) +
                 " weights for " + std::to_string(points.size()) + " points)");
-    for (std::size_t i = 0; i < weights.size(); ++i) {
-      Require(std::isfinite(weights[i]) && weights[i] >= 0.0, where,
-              "weights[" + std::to_string(i) + "]", "must be finite and >= 0");
-    }
+    for (std::size_t i = 0; i < weights.size(); ++i)
+      if (!(std::isfinite(weights[i]) && weights[i] >= 0.0))
+        Require(false, where, "weights[" + std::to_string(i) + "]", "must be finite and >= 0");
   }
   const std::optional<Line3> line = WeightedFit(points, weights);
   Require(line.has_value(), where, "points",

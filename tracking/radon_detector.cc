@@ -74,6 +74,13 @@ SearchLevels TrackingLevels(const imaging::Volume& v, const RadonDetectorOptions
   // One region for both levels: the fine level is read for the refinement near the coarse
   // line (up to 2 coarse bins beyond the window) and for the peaks within the window, each
   // with its ring and footprint — as far out as the coarse level's margin reaches.
+  // The volume is read once: the coarse cells' blocks, pooled at the fine factor, then again.
+  if (f1 % f2 == 0) {
+    const NestedGrids g = MaxPoolNested(v, f2, f1 / f2, roi);
+    L.coarse = MakeRadonLevel(v, g.coarse, o.max_depth_fraction, &roi, scene.coarse);
+    L.fine = MakeRadonLevel(v, g.fine, o.max_depth_fraction, &roi, scene.fine);
+    return L;
+  }
   L.coarse = MakeRadonLevel(v, MaxPool(v, f1, roi), o.max_depth_fraction, &roi, scene.coarse);
   L.fine = MakeRadonLevel(v, MaxPool(v, f2, roi), o.max_depth_fraction, &roi, scene.fine);
   return L;
@@ -187,7 +194,7 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
   RadonSearchResult b;
   // The refinement: a full search's directions are ~3° apart, so two passes from
   // fine_cone_rad; tracking's cone grid is already 1.6° fine, so one pass within a spacing.
-  FineSearch fine{options_.fine_cone_rad, 2};
+  FineSearch fine{options_.fine_cone_rad, 2, options_.fine_steps};
   RadonWindow window_storage;
   const RadonWindow* window = nullptr;
   if (previous) {
@@ -197,12 +204,11 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
     if (pd.z() < 0) pd = -pd;
     const int steps =
         std::max(3, static_cast<int>(std::ceil(2 * options_.tracking_cone_rad / 0.03)) | 1);
-    // Coarse to fine over the cone's grid too (a checkerboard, then the rest next to its best
-    // directions): only the best line is used here.
+    // Coarse to fine over the cone's grid too (every other row and column, then the rest
+    // next to its best directions): only the best line is used here.
     const double spacing_rad = 2 * options_.tracking_cone_rad / (steps - 1);
-    fine = FineSearch{spacing_rad, 1};
-    b = SearchDirectionsCoarseToFine(L1, DirectionCone(pd, options_.tracking_cone_rad, steps),
-                                     CoarseToFineOptions{2, 8, 1.5 * spacing_rad}, window);
+    fine = FineSearch{spacing_rad, 1, 5};
+    b = SearchConeCoarseToFine(L1, pd, options_.tracking_cone_rad, steps, 4, window);
   } else {
     // Coarse to fine over the hemisphere: every fourth direction, then the rest near the best
     // of those (the same best line at ~40 % of the cost; the z-score's baseline is the first
@@ -291,12 +297,12 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
   f.peak = coarse_peak;
   for (int pass = 0; pass < fine.passes; ++pass) {
     RadonSearchResult g =
-        SearchConeCoarseToFine(L2, f.direction, cone, options_.fine_steps, kFineTopK, &near);
+        SearchConeCoarseToFine(L2, f.direction, cone, fine.steps, kFineTopK, &near);
     if (g.peak.score > 0) {
       f = g;
       near.line = PeakLine(L2, f.direction, f.peak);
     }
-    cone /= (options_.fine_steps - 1) / 2.0;
+    cone /= (fine.steps - 1) / 2.0;
   }
   // Nearest the transducer among the strong parallel lines of the best direction: comet
   // tails (reverberation) lie behind the catheter along the beam, so farther from the probe

@@ -183,6 +183,7 @@ class RadonDetector {
   struct FineSearch {
     double cone_rad;
     int passes;
+    int steps;  // the grid's directions per side, odd
   };
   // Refines one coarse line (direction and peak) and judges it: axis fit, tip, target, tube
   // check, confidence.

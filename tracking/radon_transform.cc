@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
+#include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -231,6 +233,22 @@ class GridGeometry {
   double slack_mm_;
 };
 
+// The first index in [i, end) whose value exceeds `above` (end when none): the scan of
+// a mostly dark row, 16 cells to a compare where SSE2 is there.
+int NextAbove(const std::uint8_t* row, int i, int end, std::uint8_t above) {
+#if defined(__SSE2__)
+  const __m128i t = _mm_set1_epi8(static_cast<char>(above));
+  for (; i + 16 <= end; i += 16) {
+    const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(row + i));
+    // x ≤ above in every lane exactly when max(x, above) == above.
+    const int dark = _mm_movemask_epi8(_mm_cmpeq_epi8(_mm_max_epu8(x, t), t));
+    if (dark != 0xFFFF) return i + std::countr_one(static_cast<unsigned>(dark));
+  }
+#endif
+  while (i < end && row[i] <= above) ++i;
+  return i;
+}
+
 // The cells of grid slice k above `min_value` (and within `roi`, if any), in row order,
 // weighted by (value − bg)².
 void SliceCells(const imaging::Volume& v, const PooledGrid& g, int k, double bg, double min_value,
@@ -241,14 +259,18 @@ void SliceCells(const imaging::Volume& v, const PooledGrid& g, int k, double bg,
   const SliceRows rows = geo.Slice(k, roi);
   int j0 = 0, j1 = 0;
   if (!rows.Rows(j0, j1)) return;
+  // A value x is kept when x > min_value: for a byte, when x > ⌊min_value⌋ (none above 255).
+  assert(min_value >= 0);  // ≥ the background, a voxel value
+  if (!(min_value < 255)) return;
+  const auto dark = static_cast<std::uint8_t>(std::floor(min_value));
   for (int j = j0; j <= j1; ++j) {
     const std::uint8_t* row =
         g.values.data() + nx * (static_cast<std::size_t>(j) + ny * static_cast<std::size_t>(k));
     int i0 = 0, i1 = 0;
     if (!rows.Row(j, i0, i1)) continue;
-    for (int i = i0; i <= i1; ++i) {
+    for (int i = NextAbove(row, i0, i1 + 1, dark); i <= i1;
+         i = NextAbove(row, i + 1, i1 + 1, dark)) {
       const double x = row[i];
-      if (x <= min_value) continue;
       const Eigen::Vector3d p = geo.Centre(i, j, k);
       if (roi && PointToLineDistance(roi->line, p) > roi->radius_mm) continue;
       out.push_back({p, (x - bg) * (x - bg)});
@@ -753,16 +775,19 @@ PooledGrid MaxPool(const imaging::Volume& v, int f) {
   return Pool(v.voxels().data(), v.dims(), f, f);
 }
 
-PooledGrid MaxPool(const imaging::Volume& v, int f, const RadonWindow& roi) {
-  f = std::max(1, f);
-  const Eigen::Vector3i d = v.dims();
+namespace {
+
+// The cells of `v`'s grid pooled by out_factor that may lie within `roi`, pooled by f from
+// `src` (dims d: the volume, or a grid of it pooled by out_factor / f).
+PooledGrid PoolWithin(const imaging::Volume& v, const std::uint8_t* src, const Eigen::Vector3i& d,
+                      int f, int out_factor, const RadonWindow& roi) {
   PooledGrid g;
-  g.factor = f;
+  g.factor = out_factor;
   g.dims = Eigen::Vector3i((d.x() + f - 1) / f, (d.y() + f - 1) / f, (d.z() + f - 1) / f);
   const std::size_t nx = static_cast<std::size_t>(g.dims.x()),
                     ny = static_cast<std::size_t>(g.dims.y());
   g.values.assign(nx * ny * static_cast<std::size_t>(g.dims.z()), 0);
-  const GridGeometry geo(v, f, g.dims);
+  const GridGeometry geo(v, out_factor, g.dims);
   tbb::parallel_for(tbb::blocked_range<int>(0, g.dims.z()), [&](const tbb::blocked_range<int>& r) {
     std::vector<std::uint8_t> row(static_cast<std::size_t>(d.x()));
     for (int ko = r.begin(); ko != r.end(); ++ko) {
@@ -772,13 +797,64 @@ PooledGrid MaxPool(const imaging::Volume& v, int f, const RadonWindow& roi) {
       for (int jo = jo0; jo <= jo1; ++jo) {
         int io0 = 0, io1 = 0;
         if (!rows.Row(jo, io0, io1)) continue;
-        PoolRow(v.voxels().data(), d, f, jo, ko, io0, io1, row.data(),
+        PoolRow(src, d, f, jo, ko, io0, io1, row.data(),
                 g.values.data() +
                     nx * (static_cast<std::size_t>(jo) + ny * static_cast<std::size_t>(ko)));
       }
     }
   });
   return g;
+}
+
+}  // namespace
+
+PooledGrid MaxPool(const imaging::Volume& v, int f, const RadonWindow& roi) {
+  f = std::max(1, f);
+  return PoolWithin(v, v.voxels().data(), v.dims(), f, f, roi);
+}
+
+NestedGrids MaxPoolNested(const imaging::Volume& v, int f, int factor, const RadonWindow& roi) {
+  f = std::max(1, f);
+  factor = std::max(1, factor);
+  NestedGrids out;
+  auto shape = [](PooledGrid& g, const Eigen::Vector3i& in, int by, int total) {
+    g.factor = total;
+    g.dims =
+        Eigen::Vector3i((in.x() + by - 1) / by, (in.y() + by - 1) / by, (in.z() + by - 1) / by);
+    g.values.assign(static_cast<std::size_t>(g.dims.x()) * g.dims.y() * g.dims.z(), 0);
+  };
+  const Eigen::Vector3i d = v.dims();
+  shape(out.fine, d, f, f);
+  shape(out.coarse, out.fine.dims, factor, f * factor);
+  const Eigen::Vector3i df = out.fine.dims, dc = out.coarse.dims;
+  const std::size_t nxf = static_cast<std::size_t>(df.x()), nyf = static_cast<std::size_t>(df.y()),
+                    nxc = static_cast<std::size_t>(dc.x()), nyc = static_cast<std::size_t>(dc.y());
+  const GridGeometry geo(v, f * factor, dc);
+  // Per coarse slice: its cells in the region, the fine cells beneath them (from the
+  // volume), then the coarse cells from those. A task writes only its own slices.
+  tbb::parallel_for(tbb::blocked_range<int>(0, dc.z()), [&](const tbb::blocked_range<int>& r) {
+    std::vector<std::uint8_t> row(static_cast<std::size_t>(d.x())),
+        fine_row(static_cast<std::size_t>(df.x()));
+    for (int ko = r.begin(); ko != r.end(); ++ko) {
+      const SliceRows rows = geo.Slice(ko, &roi);
+      int jo0 = 0, jo1 = 0;
+      if (!rows.Rows(jo0, jo1)) continue;
+      for (int jo = jo0; jo <= jo1; ++jo) {
+        int io0 = 0, io1 = 0;
+        if (!rows.Row(jo, io0, io1)) continue;
+        const int if0 = io0 * factor, if1 = std::min(df.x() - 1, (io1 + 1) * factor - 1);
+        for (int kf = ko * factor; kf < std::min(df.z(), (ko + 1) * factor); ++kf)
+          for (int jf = jo * factor; jf < std::min(df.y(), (jo + 1) * factor); ++jf)
+            PoolRow(v.voxels().data(), d, f, jf, kf, if0, if1, row.data(),
+                    out.fine.values.data() +
+                        nxf * (static_cast<std::size_t>(jf) + nyf * static_cast<std::size_t>(kf)));
+        PoolRow(out.fine.values.data(), df, factor, jo, ko, io0, io1, fine_row.data(),
+                out.coarse.values.data() +
+                    nxc * (static_cast<std::size_t>(jo) + nyc * static_cast<std::size_t>(ko)));
+      }
+    }
+  });
+  return out;
 }
 
 LevelThresholds GridThresholds(const PooledGrid& g, double min_contrast) {

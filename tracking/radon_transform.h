@@ -63,6 +63,16 @@ PooledGrid MaxPool(const imaging::Volume& volume, int factor);
 // those MakeRadonLevel keeps with the same `roi`); the others, and `histogram`, stay 0. The
 // tracking search reads a small part of the volume this way.
 PooledGrid MaxPool(const imaging::Volume& volume, int factor, const RadonWindow& roi);
+// A region's grids at two nested factors: `coarse` holds the cells of `volume` pooled by
+// f · factor that may lie within `roi` (as MaxPool(volume, f · factor, roi)), `fine` the cells
+// pooled by f beneath them — among them every cell within roi.radius_mm of its line, so
+// MakeRadonLevel(volume, fine, …, &roi, …) keeps the cells it keeps from MaxPool(volume, f,
+// roi). The volume is read once (the coarse cells pooled from the fine ones); the other
+// cells, and both histograms, stay 0.
+struct NestedGrids {
+  PooledGrid fine, coarse;
+};
+NestedGrids MaxPoolNested(const imaging::Volume& volume, int f, int factor, const RadonWindow& roi);
 // Pools a pooled grid again by `factor` (≥ 1): the maximum of maxima, i.e. exactly the
 // volume pooled by grid.factor · factor (the blocks nest, also at the clipped far faces),
 // without reading the volume again.

@@ -48,15 +48,16 @@ double Median(std::vector<double> x) {
 Eigen::Vector3d RibbonAt(const imaging::Volume& v, const Line3& axis, const Eigen::Vector3d& u,
                          const Eigen::Vector3d& w, const Eigen::Vector3d& c,
                          double dynamic_range_db, const TubeCheckOptions& o) {
+  const imaging::VolumeSampler sample(v);
   auto amplitude = [&](double display) { return EchoAmplitude(display, dynamic_range_db); };
   auto sample0 = [&](const Eigen::Vector3d& p) {
-    const double x = v.Sample(p);
+    const double x = sample(p);
     return std::isnan(x) ? 0.0 : x;
   };
   constexpr int kDirections = 36;
   auto along = [&](const Eigen::Vector3d& dir, double r) {
     const Eigen::Vector3d t = dir.cross(axis.direction);
-    if (std::isnan(v.Sample(c + r * dir))) return std::numeric_limits<double>::quiet_NaN();
+    if (std::isnan(sample(c + r * dir))) return std::numeric_limits<double>::quiet_NaN();
     double m = 0;
     for (double x : {-0.5, 0.0, 0.5}) m = std::max(m, sample0(c + r * dir + x * t));
     return amplitude(m);
@@ -137,9 +138,10 @@ double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, do
       beams = BeamGeometry::Parallel(*e);
   Eigen::Vector3d u, w;
   PlaneBasis(axis.direction, u, w);
+  const imaging::VolumeSampler sample(v);
   auto amplitude = [&](double display) { return EchoAmplitude(display, dynamic_range_db); };
   auto sample0 = [&](const Eigen::Vector3d& p) {
-    const double x = v.Sample(p);
+    const double x = sample(p);
     return std::isnan(x) ? 0.0 : x;
   };
   constexpr int kRadial = 3;
@@ -152,7 +154,7 @@ double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, do
   tbb::parallel_for(0, std::max(0, sections), [&](int i) {
     const double s = s_from + i * o.step_mm;
     const Eigen::Vector3d c = axis.point + s * axis.direction;
-    const double centre = v.Sample(c);
+    const double centre = sample(c);
     if (std::isnan(centre)) return;
     Eigen::Vector3d behind = Eigen::Vector3d::Zero();
     if (beams.known()) {

@@ -125,6 +125,36 @@ TEST(RadonTransform, RegionOfInterestLevelIsTheFullLevelNearTheLine) {
   }
 }
 
+// A region's nested grids: the coarse one is the volume's pooled grid of the region, cell
+// for cell; the fine one gives the region's fine level.
+TEST(RadonTransform, NestedRegionGridsAreTheRegionsGridsOfTheVolume) {
+  const auto v = TestVolume(5);
+  const Line3 axes[] = {
+      Line3{v.IndexToPhysical(Eigen::Vector3d(20, 18, 15)),
+            Eigen::Vector3d(1, 0.4, -0.3).normalized()},
+      Line3{v.IndexToPhysical(Eigen::Vector3d(3, 30, 7)),
+            Eigen::Vector3d(0.1, -1, 0.7).normalized()},
+      Line3{v.IndexToPhysical(Eigen::Vector3d(11, 9, 21)), Eigen::Vector3d::UnitZ()}};
+  // Every cell above the background: the speckle as well as the line.
+  const LevelThresholds thresholds = GridThresholds(MaxPool(v, 2), 0.0);
+  for (const Line3& axis : axes)
+    for (double radius : {2.0, 5.0}) {
+      const RadonWindow roi{axis, radius};
+      const NestedGrids g = MaxPoolNested(v, 2, 2, roi);
+      const PooledGrid coarse = MaxPool(v, 4, roi);
+      EXPECT_EQ(g.coarse.factor, 4);
+      EXPECT_EQ(g.fine.factor, 2);
+      EXPECT_EQ(g.coarse.dims, coarse.dims);
+      ASSERT_GT(std::count_if(coarse.values.begin(), coarse.values.end(),
+                              [](std::uint8_t x) { return x > 0; }),
+                0);
+      EXPECT_EQ(g.coarse.values, coarse.values) << "radius " << radius;
+      const RadonLevel fine = MakeRadonLevel(v, MaxPool(v, 2, roi), 1.0, &roi, thresholds);
+      ASSERT_FALSE(fine.cells.empty());
+      ExpectSameCells(fine, MakeRadonLevel(v, g.fine, 1.0, &roi, thresholds));
+    }
+}
+
 TEST(RadonTransform, WindowedSearchEqualsTheBestWindowedPeakOfEachDirection) {
   const auto v = TestVolume(6);
   const RadonLevel level = MakeRadonLevel(v, 2, 1.0);
