@@ -210,9 +210,9 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
     fine = FineSearch{spacing_rad, 1, 5};
     b = SearchConeCoarseToFine(L1, pd, options_.tracking_cone_rad, steps, 4, window);
   } else {
-    // Coarse to fine over the hemisphere: every fourth direction, then the rest near the best
-    // of those (the same best line at ~40 % of the cost; the z-score's baseline is the first
-    // stage's scores, a uniform quarter of the hemisphere's).
+    // Coarse to fine over the hemisphere: every fifth direction, then the rest near the best
+    // of those (the same best line at ~35 % of the cost; the z-score's baseline is the first
+    // stage's scores, a uniform fifth of the hemisphere's).
     b = SearchDirectionsCoarseToFine(L1, FibonacciHemisphere(options_.coarse_directions),
                                      options_.hemisphere_search);
   }

@@ -959,10 +959,12 @@ std::vector<Eigen::Vector3d> DirectionCone(const Eigen::Vector3d& d, double half
   return dirs;
 }
 
-RadonSearchResult SearchDirections(const RadonLevel& L, std::span<const Eigen::Vector3d> dirs,
-                                   const RadonWindow* window) {
+namespace {
+
+// SearchDirections over `cells` (the level's, or a window's superset of WindowCells').
+RadonSearchResult SearchIn(const RadonLevel& L, const CellColumns& cells,
+                           std::span<const Eigen::Vector3d> dirs, const RadonWindow* window) {
   std::vector<RadonPeak> best(dirs.size());
-  const CellColumns cells = window ? WindowCells(L, dirs, *window) : CellColumns(L);
   tbb::parallel_for(std::size_t{0}, dirs.size(),
                     [&](std::size_t i) { best[i] = BestPeak(L, cells, dirs[i], window); });
   RadonSearchResult b;
@@ -977,6 +979,19 @@ RadonSearchResult SearchDirections(const RadonLevel& L, std::span<const Eigen::V
   }
   b.peaks = std::move(best);
   return b;
+}
+
+// The cells a search over any of `dirs` within `window` (all, without one) can use.
+CellColumns SearchCells(const RadonLevel& L, std::span<const Eigen::Vector3d> dirs,
+                        const RadonWindow* window) {
+  return window ? WindowCells(L, dirs, *window) : CellColumns(L);
+}
+
+}  // namespace
+
+RadonSearchResult SearchDirections(const RadonLevel& L, std::span<const Eigen::Vector3d> dirs,
+                                   const RadonWindow* window) {
+  return SearchIn(L, SearchCells(L, dirs, window), dirs, window);
 }
 
 namespace {
@@ -996,10 +1011,11 @@ std::vector<std::size_t> BestIndices(const std::vector<double>& scores, int top_
 
 // A two-stage search's result: the first stage's `b`, its peak replaced by the second
 // stage's (`second`) when that scores higher.
-RadonSearchResult WithSecondStage(const RadonLevel& L, const std::vector<Eigen::Vector3d>& second,
+RadonSearchResult WithSecondStage(const RadonLevel& L, const CellColumns& cells,
+                                  const std::vector<Eigen::Vector3d>& second,
                                   const RadonWindow* window, RadonSearchResult b) {
   if (second.empty()) return b;
-  const RadonSearchResult r = SearchDirections(L, second, window);
+  const RadonSearchResult r = SearchIn(L, cells, second, window);
   if (r.peak.score > b.peak.score) {
     b.peak = r.peak;
     b.direction = r.direction;
@@ -1017,7 +1033,9 @@ RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& L,
   // Stage 1: every stride-th direction.
   std::vector<Eigen::Vector3d> first;
   for (std::size_t i = 0; i < dirs.size(); i += stride) first.push_back(dirs[i]);
-  RadonSearchResult b = SearchDirections(L, first, window);
+  // The cells of both stages, selected once.
+  const CellColumns cells = SearchCells(L, dirs, window);
+  RadonSearchResult b = SearchIn(L, cells, first, window);
   // Stage 2: the other directions near the top_k of stage 1.
   const std::vector<std::size_t> best = BestIndices(b.scores, o.top_k);
   const double cos_near = std::cos(o.neighbour_rad);
@@ -1030,7 +1048,7 @@ RadonSearchResult SearchDirectionsCoarseToFine(const RadonLevel& L,
         break;
       }
   }
-  return WithSecondStage(L, second, window, std::move(b));
+  return WithSecondStage(L, cells, second, window, std::move(b));
 }
 
 RadonSearchResult SearchConeCoarseToFine(const RadonLevel& L, const Eigen::Vector3d& d,
@@ -1046,7 +1064,10 @@ RadonSearchResult SearchConeCoarseToFine(const RadonLevel& L, const Eigen::Vecto
         first_ij.push_back(i * steps + j);
         first.push_back(dirs[static_cast<std::size_t>(i * steps + j)]);
       }
-  RadonSearchResult b = SearchDirections(L, first, window);
+  // The cells of both stages, selected once (the sub-grid holds the grid's corners, so the
+  // same cells as for it alone).
+  const CellColumns cells = SearchCells(L, dirs, window);
+  RadonSearchResult b = SearchIn(L, cells, first, window);
   std::vector<char> take(dirs.size(), 0);
   for (const std::size_t t : BestIndices(b.scores, top_k)) {
     if (b.scores[t] <= 0) break;
@@ -1058,7 +1079,7 @@ RadonSearchResult SearchConeCoarseToFine(const RadonLevel& L, const Eigen::Vecto
   std::vector<Eigen::Vector3d> second;
   for (std::size_t i = 0; i < dirs.size(); ++i)
     if (take[i]) second.push_back(dirs[i]);
-  return WithSecondStage(L, second, window, std::move(b));
+  return WithSecondStage(L, cells, second, window, std::move(b));
 }
 
 }  // namespace echoservo::tracking
