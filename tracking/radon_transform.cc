@@ -913,15 +913,25 @@ std::vector<RadonPeak> RadonPeaks(const RadonLevel& L, const Eigen::Vector3d& d,
   H.Splat(CellColumns(L), nullptr);
   std::vector<RadonPeak> peaks;
   std::vector<double> all;
-  // The z-score needs every bin's score; the peaks alone only the bins near the window.
+  // The z-score needs every bin's score; the peaks alone only the bins near the window, and
+  // of those only the local maxima (found a row at a time, in the same order).
   const BinBox c = H.Candidates(want_z ? nullptr : window);
-  for (int y = c.y0; y <= c.y1; ++y)
-    for (int x = c.x0; x <= c.x1; ++x) {
-      if (H.at(x, y) <= 0) continue;
-      if (want_z) all.push_back(std::max(0.0, H.at(x, y) - H.Ring(x, y)));
-      RadonPeak p;
-      if (H.PeakAt(x, y, p) && H.Admissible(p, window)) peaks.push_back(p);
-    }
+  if (!want_z) {
+    thread_local LocalMaxima finder;
+    if (!c.Empty())
+      for (const LocalMaximum& m : finder.Find(H, c)) {
+        RadonPeak p;
+        if (H.PeakAt(m.x, m.y, p) && H.Admissible(p, window)) peaks.push_back(p);
+      }
+  } else {
+    for (int y = c.y0; y <= c.y1; ++y)
+      for (int x = c.x0; x <= c.x1; ++x) {
+        if (H.at(x, y) <= 0) continue;
+        all.push_back(std::max(0.0, H.at(x, y) - H.Ring(x, y)));
+        RadonPeak p;
+        if (H.PeakAt(x, y, p) && H.Admissible(p, window)) peaks.push_back(p);
+      }
+  }
   std::sort(peaks.begin(), peaks.end(),
             [](const RadonPeak& a, const RadonPeak& b) { return a.score > b.score; });
   if (want_z && !peaks.empty() && all.size() > 8)
