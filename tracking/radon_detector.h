@@ -69,11 +69,12 @@ struct RadonDetectorOptions {
   int coarse_directions = static_cast<int>(
       params::kCoarseDirections.default_value);  // Fibonacci hemisphere size at the coarse level
   // The coarse search over the hemisphere (tracking/radon_transform.h
-  // SearchDirectionsCoarseToFine): every 5th direction (~0.12 rad apart at 2000), then the
-  // others within 0.17 rad of the 16 best. Measured on every `bench detect` class (8 volumes
-  // each): the same detections and errors as every 4th (and every 2nd within 0.12 rad), the
-  // search at ~90 % of every 4th's time.
-  CoarseToFineOptions hemisphere_search{5, 16, 0.17};
+  // SearchDirectionsCoarseToFine): every 5th direction (~0.13 rad apart at 2000; a direction
+  // lies within ~0.08 rad of one), then the others within 0.14 rad of the 8 best. Measured on
+  // every `bench detect` class (8 volumes each, seeds 7 and 11): the same detections and
+  // errors as every 4th within 0.17 rad of the 16 best (and every 2nd within 0.12 rad), the
+  // search at ~75 % of that one's time.
+  CoarseToFineOptions hemisphere_search{5, 8, 0.14};
   double fine_cone_rad = 0.08;  // refinement cone half-angle around the coarse best
   int fine_steps = 9;           // refinement grid, fine_steps² directions per pass
   // Full-resolution axis fit (tracking/echo_axis_fit.h): fit cylinder, first-echo look-back
