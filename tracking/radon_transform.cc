@@ -777,83 +777,77 @@ PooledGrid MaxPool(const imaging::Volume& v, int f) {
 
 namespace {
 
-// The cells of `v`'s grid pooled by out_factor that may lie within `roi`, pooled by f from
-// `src` (dims d: the volume, or a grid of it pooled by out_factor / f).
-PooledGrid PoolWithin(const imaging::Volume& v, const std::uint8_t* src, const Eigen::Vector3i& d,
-                      int f, int out_factor, const RadonWindow& roi) {
-  PooledGrid g;
-  g.factor = out_factor;
-  g.dims = Eigen::Vector3i((d.x() + f - 1) / f, (d.y() + f - 1) / f, (d.z() + f - 1) / f);
-  const std::size_t nx = static_cast<std::size_t>(g.dims.x()),
-                    ny = static_cast<std::size_t>(g.dims.y());
-  g.values.assign(nx * ny * static_cast<std::size_t>(g.dims.z()), 0);
-  const GridGeometry geo(v, out_factor, g.dims);
-  tbb::parallel_for(tbb::blocked_range<int>(0, g.dims.z()), [&](const tbb::blocked_range<int>& r) {
-    std::vector<std::uint8_t> row(static_cast<std::size_t>(d.x()));
+// Calls row(ko, jo, io0, io1, scratch) for the part [io0, io1] of each row (jo, ko) of the
+// grid `geo` (with `slices` slices) that may lie within `roi`; slices in parallel (TBB), so a
+// call writes only its own slice's cells. `scratch` is the calling thread's buffer.
+template <typename Row>
+void ForEachRegionRow(const GridGeometry& geo, int slices, const RadonWindow& roi, Row row) {
+  tbb::parallel_for(tbb::blocked_range<int>(0, slices), [&](const tbb::blocked_range<int>& r) {
+    thread_local std::vector<std::uint8_t> scratch;
     for (int ko = r.begin(); ko != r.end(); ++ko) {
       const SliceRows rows = geo.Slice(ko, &roi);
       int jo0 = 0, jo1 = 0;
       if (!rows.Rows(jo0, jo1)) continue;
       for (int jo = jo0; jo <= jo1; ++jo) {
         int io0 = 0, io1 = 0;
-        if (!rows.Row(jo, io0, io1)) continue;
-        PoolRow(src, d, f, jo, ko, io0, io1, row.data(),
-                g.values.data() +
-                    nx * (static_cast<std::size_t>(jo) + ny * static_cast<std::size_t>(ko)));
+        if (rows.Row(jo, io0, io1)) row(ko, jo, io0, io1, scratch);
       }
     }
   });
-  return g;
+}
+
+// A grid of `in` (dims) pooled by `by`, `total` times the volume's voxels, all 0.
+void ShapeGrid(PooledGrid& g, const Eigen::Vector3i& in, int by, int total) {
+  g.factor = total;
+  g.dims = Eigen::Vector3i((in.x() + by - 1) / by, (in.y() + by - 1) / by, (in.z() + by - 1) / by);
+  g.values.assign(static_cast<std::size_t>(g.dims.x()) * g.dims.y() * g.dims.z(), 0);
+}
+
+// The start of row (j, k) of grid g.
+std::uint8_t* RowOf(PooledGrid& g, int j, int k) {
+  return g.values.data() + static_cast<std::size_t>(g.dims.x()) *
+                               (static_cast<std::size_t>(j) +
+                                static_cast<std::size_t>(g.dims.y()) * static_cast<std::size_t>(k));
 }
 
 }  // namespace
 
 PooledGrid MaxPool(const imaging::Volume& v, int f, const RadonWindow& roi) {
   f = std::max(1, f);
-  return PoolWithin(v, v.voxels().data(), v.dims(), f, f, roi);
+  const Eigen::Vector3i d = v.dims();
+  PooledGrid g;
+  ShapeGrid(g, d, f, f);
+  ForEachRegionRow(GridGeometry(v, f, g.dims), g.dims.z(), roi,
+                   [&](int ko, int jo, int io0, int io1, std::vector<std::uint8_t>& scratch) {
+                     scratch.resize(static_cast<std::size_t>(d.x()));
+                     PoolRow(v.voxels().data(), d, f, jo, ko, io0, io1, scratch.data(),
+                             RowOf(g, jo, ko));
+                   });
+  return g;
 }
 
 NestedGrids MaxPoolNested(const imaging::Volume& v, int f, int factor, const RadonWindow& roi) {
   f = std::max(1, f);
   factor = std::max(1, factor);
   NestedGrids out;
-  auto shape = [](PooledGrid& g, const Eigen::Vector3i& in, int by, int total) {
-    g.factor = total;
-    g.dims =
-        Eigen::Vector3i((in.x() + by - 1) / by, (in.y() + by - 1) / by, (in.z() + by - 1) / by);
-    g.values.assign(static_cast<std::size_t>(g.dims.x()) * g.dims.y() * g.dims.z(), 0);
-  };
   const Eigen::Vector3i d = v.dims();
-  shape(out.fine, d, f, f);
-  shape(out.coarse, out.fine.dims, factor, f * factor);
-  const Eigen::Vector3i df = out.fine.dims, dc = out.coarse.dims;
-  const std::size_t nxf = static_cast<std::size_t>(df.x()), nyf = static_cast<std::size_t>(df.y()),
-                    nxc = static_cast<std::size_t>(dc.x()), nyc = static_cast<std::size_t>(dc.y());
-  const GridGeometry geo(v, f * factor, dc);
-  // Per coarse slice: its cells in the region, the fine cells beneath them (from the
-  // volume), then the coarse cells from those. A task writes only its own slices.
-  tbb::parallel_for(tbb::blocked_range<int>(0, dc.z()), [&](const tbb::blocked_range<int>& r) {
-    std::vector<std::uint8_t> row(static_cast<std::size_t>(d.x())),
-        fine_row(static_cast<std::size_t>(df.x()));
-    for (int ko = r.begin(); ko != r.end(); ++ko) {
-      const SliceRows rows = geo.Slice(ko, &roi);
-      int jo0 = 0, jo1 = 0;
-      if (!rows.Rows(jo0, jo1)) continue;
-      for (int jo = jo0; jo <= jo1; ++jo) {
-        int io0 = 0, io1 = 0;
-        if (!rows.Row(jo, io0, io1)) continue;
-        const int if0 = io0 * factor, if1 = std::min(df.x() - 1, (io1 + 1) * factor - 1);
-        for (int kf = ko * factor; kf < std::min(df.z(), (ko + 1) * factor); ++kf)
-          for (int jf = jo * factor; jf < std::min(df.y(), (jo + 1) * factor); ++jf)
-            PoolRow(v.voxels().data(), d, f, jf, kf, if0, if1, row.data(),
-                    out.fine.values.data() +
-                        nxf * (static_cast<std::size_t>(jf) + nyf * static_cast<std::size_t>(kf)));
-        PoolRow(out.fine.values.data(), df, factor, jo, ko, io0, io1, fine_row.data(),
-                out.coarse.values.data() +
-                    nxc * (static_cast<std::size_t>(jo) + nyc * static_cast<std::size_t>(ko)));
-      }
-    }
-  });
+  ShapeGrid(out.fine, d, f, f);
+  ShapeGrid(out.coarse, out.fine.dims, factor, f * factor);
+  const Eigen::Vector3i df = out.fine.dims;
+  // Per coarse row part in the region: the fine cells beneath it (from the volume), then
+  // the coarse cells from those.
+  ForEachRegionRow(GridGeometry(v, f * factor, out.coarse.dims), out.coarse.dims.z(), roi,
+                   [&](int ko, int jo, int io0, int io1, std::vector<std::uint8_t>& scratch) {
+                     scratch.resize(static_cast<std::size_t>(std::max(d.x(), df.x())));
+                     const int if0 = io0 * factor,
+                               if1 = std::min(df.x() - 1, (io1 + 1) * factor - 1);
+                     for (int kf = ko * factor; kf < std::min(df.z(), (ko + 1) * factor); ++kf)
+                       for (int jf = jo * factor; jf < std::min(df.y(), (jo + 1) * factor); ++jf)
+                         PoolRow(v.voxels().data(), d, f, jf, kf, if0, if1, scratch.data(),
+                                 RowOf(out.fine, jf, kf));
+                     PoolRow(out.fine.values.data(), df, factor, jo, ko, io0, io1, scratch.data(),
+                             RowOf(out.coarse, jo, ko));
+                   });
   return out;
 }
 
