@@ -344,14 +344,25 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
   if (options_.beams || !volume_beams_known) tip_edge.tip_first_echo_mm = 0.0;
   TipEstimate tip = FindTip(v, fit->axis, bg, tip_edge);
   if (!tip.found) return out;
+  // The ribbon looked for along the tip's axis, [s_from, s_to], and what was found: the tube
+  // check below does not look again over the same range.
+  struct {
+    bool looked = false;
+    double s_from = 0, s_to = 0;
+    std::optional<Eigen::Vector3d> direction;
+  } ribbon;
   if (!beams.known() && options_.infer_beams_from_ribbon) {
     // Unknown beams, but a single view's reverberation ribbon shows where they point (its
     // direction ⟂ the axis, away from the transducer): then the near-wall model and the
     // first-echo rule apply with those beams. No ribbon (a compounded volume, a catheter
     // along the beam): the symmetric centre-line fit stands.
     const double s_tip = tip.axis.Parameter(tip.tip_mm);
-    if (const auto e = RibbonDirection(v, tip.axis, s_tip - tip.line_length_mm, s_tip,
-                                       options_.edge.dynamic_range_db, options_.tube)) {
+    ribbon.looked = true;
+    ribbon.s_from = s_tip - tip.line_length_mm;
+    ribbon.s_to = s_tip;
+    ribbon.direction = RibbonDirection(v, tip.axis, ribbon.s_from, ribbon.s_to,
+                                       options_.edge.dynamic_range_db, options_.tube);
+    if (const auto& e = ribbon.direction) {
       const BeamGeometry inferred = BeamGeometry::Parallel(*e);
       auto refit = FitEchoAxis(v, fit->axis, bg, options_.fit, inferred);
       if (refit) {
@@ -380,9 +391,16 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
     out.line_length_mm = std::max(0.0, out.line_length_mm - shift);
   }
 
-  out.tubularity = Tubularity(v, out.axis, out.axis.Parameter(out.tip_mm) - out.line_length_mm,
-                              out.axis.Parameter(out.tip_mm), options_.edge.dynamic_range_db,
-                              options_.tube, beams);
+  const double s_to = out.axis.Parameter(out.tip_mm), s_from = s_to - out.line_length_mm;
+  // Beams still unknown after a look over the same axis and range: what that look found.
+  BeamGeometry tube_beams = beams;
+  bool search_ribbon = true;
+  if (!beams.known() && ribbon.looked && ribbon.s_from == s_from && ribbon.s_to == s_to) {
+    if (ribbon.direction) tube_beams = BeamGeometry::Parallel(*ribbon.direction);
+    search_ribbon = false;
+  }
+  out.tubularity = Tubularity(v, out.axis, s_from, s_to, options_.edge.dynamic_range_db,
+                              options_.tube, tube_beams, search_ribbon);
 
   // Confidence: Radon peak contrast (robust z among the directions' best lines), length, and
   // the line's tube shape (a line within a surface is not a catheter). The peak's contrast

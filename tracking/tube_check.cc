@@ -129,11 +129,12 @@ double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, do
 }
 
 double Tubularity(const imaging::Volume& v, const Line3& axis, double s_from, double s_to,
-                  double dynamic_range_db, const TubeCheckOptions& o, const BeamGeometry& given) {
+                  double dynamic_range_db, const TubeCheckOptions& o, const BeamGeometry& given,
+                  bool search_ribbon) {
   // Unknown beams: a ribbon that most cross-sections agree on stands for them (parallel beams
   // along it); none: no sector is skipped.
   BeamGeometry beams = given;
-  if (!beams.known())
+  if (!beams.known() && search_ribbon)
     if (const auto e = RibbonDirection(v, axis, s_from, s_to, dynamic_range_db, o))
       beams = BeamGeometry::Parallel(*e);
   Eigen::Vector3d u, w;

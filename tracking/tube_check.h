@@ -53,8 +53,10 @@ std::optional<Eigen::Vector3d> RibbonDirection(const imaging::Volume& volume, co
 // Beams from BeamGeometry::FromVolume.
 double Tubularity(const imaging::Volume& volume, const Line3& axis, double s_from, double s_to,
                   double dynamic_range_db, const TubeCheckOptions& options);
+// With `beams` unknown, the ribbon is looked for (RibbonDirection) unless `search_ribbon` is
+// false (the caller looked over the same axis and range and found none).
 double Tubularity(const imaging::Volume& volume, const Line3& axis, double s_from, double s_to,
                   double dynamic_range_db, const TubeCheckOptions& options,
-                  const BeamGeometry& beams);
+                  const BeamGeometry& beams, bool search_ribbon = true);
 
 }  // namespace echoservo::tracking

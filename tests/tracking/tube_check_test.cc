@@ -74,6 +74,9 @@ TEST(Tubularity, UnknownBeamsADecayingRibbonIsReverberation) {
   EXPECT_GT(
       Tubularity(v, kAxis, -15, 15, 50, {}, BeamGeometry::Parallel(Eigen::Vector3d(0, -0.8, 0.6))),
       0.9);
+  // Told that no ribbon was found over this range (the caller looked), no sector is skipped:
+  // the ribbon's copies (6 dB down each) count against the tube (0.75 here, against > 0.9).
+  EXPECT_LT(Tubularity(v, kAxis, -15, 15, 50, {}, BeamGeometry{}, false), 0.85);
 }
 
 TEST(Tubularity, UnknownBeamsAUniformHalfPlaneIsNotARibbon) {
