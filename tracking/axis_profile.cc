@@ -483,7 +483,8 @@ std::optional<double> FirstSurfaceOn(const std::vector<double>& fp, bool whole, 
                                      double dynamic_range_db) {
   const int M = static_cast<int>(fp.size());
   const double none = std::numeric_limits<double>::quiet_NaN();
-  if (!whole && M < bg_hi) return std::nullopt;
+  // The background window's 3-sample means are final when the sample after it is there.
+  if (!whole && M <= bg_hi) return std::nullopt;
   // 0.75 mm box: shorter than the echo of an interface (a pulse's envelope), longer than
   // one speckle grain's sampling.
   std::vector<double> fs(static_cast<std::size_t>(M), 0);
@@ -502,7 +503,7 @@ std::optional<double> FirstSurfaceOn(const std::vector<double>& fp, bool whole, 
   {
     std::vector<double> near;
     for (int i = std::max(0, bg_lo); i < std::min(M, bg_hi); ++i) near.push_back(at(i));
-    if (near.empty()) return none;  // an empty window (M ≥ bg_hi when not whole)
+    if (near.empty()) return none;  // an empty window (M > bg_hi when not whole)
     const MedianMad m = ComputeMedianMad(near);
     fbg = m.median;
     spread = 1.4826 * m.mad;
