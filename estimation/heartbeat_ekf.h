@@ -9,11 +9,12 @@
 // The heart rate is bounded to a physiological band (default 30–220 bpm, widened to the
 // search range when that is wider) and re-acquired from the newest window of data (a batch
 // spectral fit) when the filter's rate reaches the band's edge, most innovations stay
-// large, the window's own period (autocorrelation) is under 0.7 of the filter's (a
-// sub-harmonic lock), or the state leaves the window's range; with a cooldown between
-// re-acquisitions. Predict is bounded to the newest window's range ± half of it.
-// Errors: the constructor throws std::invalid_argument for inconsistent options; Process
-// throws it for a NaN or infinite input or a time not after the previous one.
+// large, the window's own fundamental (estimation/heart_rate.h) is significant and more
+// than 15 % from the filter's rate (a sub-harmonic or harmonic lock), or the state leaves
+// the window's range; with a cooldown between re-acquisitions. Every (re)acquisition takes
+// its rate from that fundamental when it is significant. Predict is bounded to the newest window's
+// range ± half of it. Errors: the constructor throws std::invalid_argument for inconsistent
+// options; Process throws it for a NaN or infinite input or a time not after the previous one.
 // Details: docs/predictor.md#the-heartbeat-ekf-estimationheartbeat_ekfh
 #pragma once
 
@@ -22,8 +23,10 @@
 #include <cstddef>
 #include <deque>
 #include <utility>
+#include <vector>
 
 #include "estimation/fourier_motion.h"
+#include "estimation/heart_rate.h"
 #include "estimation/motion_predictor.h"
 #include "estimation/slow_trend.h"
 #include "formats/parameter_spec.h"
@@ -198,8 +201,9 @@ class HeartbeatEkf final : public MotionPredictor {
   void Initialise(int keep_harmonics = 0);
   // After an accepted or rejected measurement: the NIS average and the re-acquisition test.
   void Watch(double dt_s, double nis, bool out_of_band);
-  // The newest window's period (s) by autocorrelation within the rate band; 0: none found.
-  double WindowPeriod() const;
+  // The fundamental of a window of measurements, over the search range.
+  HeartRateEstimate WindowHeartRate(const std::vector<double>& t_s,
+                                    const std::vector<double>& z_mm) const;
   int ChooseHarmonics() const;
   // Sets respiration_ and its intensity from a window's slow-trend evidence.
   void ChooseRespiration(const TrendEvidence& evidence);
@@ -233,6 +237,7 @@ class HeartbeatEkf final : public MotionPredictor {
   std::size_t reacquisitions_ = 0;
   double nis_mean_ = 0.0;  // the large-innovation fraction
   double since_init_s_ = 0.0;
+  double since_rate_check_s_ = 0.0;
   double window_lo_mm_ = 1.0;  // the newest window's range (Predict's bound); lo > hi: none
   double window_hi_mm_ = 0.0;
   double cooldown_s_ = 0.0;   // re-acquisition on large innovations waits this long (s)

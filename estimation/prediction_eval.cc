@@ -1,7 +1,9 @@
 #include "estimation/prediction_eval.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 
@@ -98,6 +100,24 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
   std::vector<Accumulator> acc(kCount);
   std::vector<std::size_t> chosen(kCount, 0);
   const TraceInterpolator truth_at(reference);
+  // The reference, fitted on the first half; its predictions at the second half's
+  // measurements, in order.
+  if (o.reference) {
+    ArReferenceOptions ro = o.reference_options;
+    ro.latency_s = o.latency_s;
+    try {
+      run.reference = FitArReference(measured, ro);
+      run.has_reference = true;
+    } catch (const std::invalid_argument& e) {
+      run.reference_note = e.what();
+    }
+  }
+  const double split_s =
+      run.has_reference ? run.reference.split_s : std::numeric_limits<double>::infinity();
+  std::size_t ref_cursor = 0;
+  Accumulator half_shipped;
+  Accumulator half_reference;
+  std::vector<Accumulator> half(kCount);
   bool scoring = false;
   for (std::size_t i = 0; i < measured.size(); ++i) {
     const double t = measured.t_s[i];
@@ -117,11 +137,20 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
     }
     const double e = competition.Predict(target_t) - truth;
     shipped_acc.Add(e);
+    const bool second_half = t >= split_s;
+    if (second_half) {
+      const auto& rt = run.reference.t_s;
+      while (ref_cursor < rt.size() && rt[ref_cursor] < t) ++ref_cursor;
+      assert(ref_cursor < rt.size() && rt[ref_cursor] == t);
+      half_reference.Add(run.reference.predicted_mm[ref_cursor] - truth);
+      half_shipped.Add(e);
+    }
     ++chosen[static_cast<std::size_t>(competition.chosen())];
     if (o.keep_errors) run.shipped_errors_mm.push_back(e);
     for (int c = 0; c < kCount; ++c) {
       const double ec = competition.competitor(c).Predict(target_t) - truth;
       acc[static_cast<std::size_t>(c)].Add(ec);
+      if (second_half) half[static_cast<std::size_t>(c)].Add(ec);
       if (o.keep_errors && c == PredictorCompetition::kEkf) run.ekf_errors_mm.push_back(ec);
     }
   }
@@ -141,6 +170,21 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
     if (c >= PredictorCompetition::kZoh) run.baselines.push_back(run.competitors.back());
   }
   run.ekf = run.competitors[PredictorCompetition::kEkf];
+  if (run.has_reference && half_shipped.n == 0) {
+    run.has_reference = false;
+    run.reference_note =
+        trace.source + ": no second-half measurement has a reference `latency` later";
+  }
+  if (run.has_reference) {
+    SecondHalfScores& h = run.second_half;
+    h.split_s = split_s;
+    h.scored = half_shipped.n;
+    h.shipped = half_shipped.Score(competition.name());
+    h.reference = half_reference.Score("autoregressive_reference");
+    for (int c = 0; c < kCount; ++c)
+      h.competitors.push_back(half[static_cast<std::size_t>(c)].Score(
+          run.competitors[static_cast<std::size_t>(c)].name));
+  }
   run.switches = competition.switches();
   run.reacquisitions = ekf.reacquisitions();
   run.ar_order = competition.ar().order();
@@ -149,6 +193,21 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
   run.respiration = ekf.respiration();
   run.offset_rate_q_mm_s = ekf.offset_rate_q_mm_s();
   run.rate_hz = ekf.rate_hz();
+  {
+    // The newest heart_rate_window_s of measurements, within the EKF's search range.
+    std::size_t first = 0;
+    while (first + 16 < measured.size() &&
+           measured.t_s.back() - measured.t_s[first] > o.heart_rate_window_s)
+      ++first;
+    HeartRateOptions ho;
+    ho.min_hz = o.ekf.min_rate_hz;
+    ho.max_hz = o.ekf.max_rate_hz;
+    ho.max_analysis_hz = std::max(ho.max_analysis_hz, 2.5 * ho.max_hz);
+    run.heart_rate =
+        EstimateHeartRate(measured.t_s.data() + first, measured.position_mm.data() + first,
+                          measured.size() - first, ho);
+    run.heart_rate_window_s = measured.t_s.back() - measured.t_s[first];
+  }
   run.noise_mm = ekf.noise_mm();
   run.accepted = ekf.accepted();
   run.rejected = ekf.rejected();

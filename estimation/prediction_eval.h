@@ -16,6 +16,8 @@
 #include <utility>
 #include <vector>
 
+#include "estimation/ar_reference.h"
+#include "estimation/heart_rate.h"
 #include "estimation/heartbeat_ekf.h"
 #include "estimation/motion_trace.h"
 #include "estimation/predictor_competition.h"
@@ -39,6 +41,22 @@ struct PredictionRunOptions {
   Combination combination = Combination::kPickBest;
   double competition_window_s = 8.0;
   ArPredictorOptions ar;  // horizon_s is set to latency_s
+  // The autoregressive reference (estimation/ar_reference.h; its latency is latency_s):
+  // fitted on the first half of the measurements, scored on the second half beside every
+  // predictor. Skipped (PredictionRun::reference_note says why) for a trace too short.
+  bool reference = true;
+  double heart_rate_window_s = 10.0;  // the newest span the reported heart rate is from
+  ArReferenceOptions reference_options;
+};
+
+// The scores on the second half of the measurements (t ≥ split_s), where the reference is
+// scored: the same instants for every predictor.
+struct SecondHalfScores {
+  double split_s = 0.0;
+  std::size_t scored = 0;
+  PredictionScore shipped;
+  std::vector<PredictionScore> competitors;  // as PredictionRun::competitors
+  PredictionScore reference;
 };
 
 struct PredictionRun {
@@ -64,12 +82,22 @@ struct PredictionRun {
   int harmonics = 0;
   bool respiration = false;         // the offset-rate state carried
   double offset_rate_q_mm_s = 0.0;  // its intensity (0 without)
-  double rate_hz = 0.0;
+  double rate_hz = 0.0;             // the EKF's filter rate at the end
+  // The heart rate of the measurements' newest heart_rate_window_s (estimation/heart_rate.h):
+  // what is reported as the heart rate (none unless significant).
+  HeartRateEstimate heart_rate;
+  double heart_rate_window_s = 0.0;
   double noise_mm = 0.0;
   std::size_t accepted = 0;
   std::size_t rejected = 0;
   std::size_t initialisations = 0;
   double cv_accel_psd_mm2_s3 = 0.0;
+  // The autoregressive reference and the second half's scores; when has_reference is
+  // false, reference_note says why (e.g. the trace is too short, and how long it must be).
+  bool has_reference = false;
+  std::string reference_note;
+  ArReference reference;
+  SecondHalfScores second_half;
   std::vector<double> ekf_errors_mm;      // with keep_errors: the EKF alone
   std::vector<double> shipped_errors_mm;  // with keep_errors: the competition's output
 };

@@ -61,6 +61,40 @@ nlohmann::json ScoreJson(const estimation::PredictionScore& s) {
   return {{"rms_mm", s.rms_mm}, {"mae_mm", s.mae_mm}, {"max_mm", s.max_mm}};
 }
 
+// The autoregressive reference (null with a note when the trace is too short) and the
+// second half's scores, where it is scored.
+void AddReferenceJson(const estimation::PredictionRun& r, nlohmann::json& j) {
+  if (!r.has_reference) {
+    j["reference"] = nullptr;
+    j["reference_note"] = r.reference_note;
+    j["second_half"] = nullptr;
+    return;
+  }
+  const auto& a = r.reference;
+  const auto& h = r.second_half;
+  nlohmann::json candidates = nlohmann::json::array();
+  for (std::size_t i = 0; i < a.candidates.size(); ++i)
+    candidates.push_back(
+        {{"order", a.candidates[i]}, {"validation_rms_mm", a.validation_rms_mm[i]}});
+  nlohmann::json ref = ScoreJson(h.reference);
+  ref.update({{"model", "autoregressive direct, least squares on the first half"},
+              {"order", a.order},
+              {"stride", a.stride},
+              {"history_s", a.history_s},
+              {"split_s", a.split_s},
+              {"trained_rows", a.trained},
+              {"held", a.held},
+              {"cross_validation", candidates}});
+  j["reference"] = ref;
+  nlohmann::json competitors = nlohmann::json::object();
+  for (const auto& c : h.competitors) competitors[c.name] = ScoreJson(c);
+  j["second_half"] = {{"from_s", h.split_s},
+                      {"scored", h.scored},
+                      {"shipped", ScoreJson(h.shipped)},
+                      {"competitors", competitors},
+                      {"shipped_over_reference", h.shipped.rms_mm / h.reference.rms_mm}};
+}
+
 // The trace must be a readable file: a folder or a missing path is named with why (the
 // CSV reader would only say "read error" for a folder).
 void CheckTraceFile(const std::string& path) {
@@ -110,9 +144,9 @@ void LoadPredictTraces(const PredictFlags& f, estimation::MotionTrace& trace,
 void PrintPrediction(const PredictFlags& f, const estimation::MotionTrace& trace,
                      const estimation::PredictionRun& r) {
   const double zoh = r.baselines.front().rms_mm;
-  // The heart rate only inside the physiological band (a rate outside it is no heart rate).
-  const double bpm = 60.0 * r.rate_hz;
-  const bool bpm_valid = bpm >= 30.0 && bpm <= 220.0;
+  // The heart rate from the newest window's fundamental: none unless significant.
+  const double bpm = r.heart_rate.bpm();
+  const bool bpm_valid = r.heart_rate.significant;
   if (f.json) {
     nlohmann::json baselines = nlohmann::json::object();
     for (const auto& b : r.baselines) baselines[b.name] = ScoreJson(b);
@@ -143,6 +177,17 @@ void PrintPrediction(const PredictFlags& f, const estimation::MotionTrace& trace
           {"max_mm", r.ekf.max_mm},
           {"harmonics", r.harmonics},
           {"heart_rate_bpm", bpm_valid ? nlohmann::json(bpm) : nlohmann::json(nullptr)},
+          {"filter_rate_bpm", 60.0 * r.rate_hz},
+          {"heart_rate",
+           {{"significant", r.heart_rate.significant},
+            {"candidate_bpm", r.heart_rate.bpm()},
+            {"window_s", r.heart_rate_window_s},
+            {"p_value", r.heart_rate.p_value},
+            {"acf_period_s", r.heart_rate.acf_period_s},
+            {"acf_at_period", r.heart_rate.acf_at_period},
+            {"fundamental_share", r.heart_rate.fundamental_share},
+            {"corrections", r.heart_rate.corrections},
+            {"reason", r.heart_rate.reason}}},
           {"reacquisitions", r.reacquisitions},
           {"noise_mm", r.noise_mm},
           {"respiration", r.respiration},
@@ -155,6 +200,7 @@ void PrintPrediction(const PredictFlags& f, const estimation::MotionTrace& trace
         {"baselines", baselines},
         {"zoh_over_ekf", zoh / r.shipped.rms_mm},
         {"constant_velocity_kf_accel_psd_mm2_s3", r.cv_accel_psd_mm2_s3}};
+    AddReferenceJson(r, j);
     std::cout << j.dump(2) << "\n";
     return;
   }
@@ -174,11 +220,25 @@ void PrintPrediction(const PredictFlags& f, const estimation::MotionTrace& trace
               Fixed(c.rms_mm / zoh, 3), Fixed(100.0 * r.chosen_fraction[i].second, 1) + " %"});
   }
   t.Print(std::cout);
+  if (r.has_reference) {
+    const auto& h = r.second_half;
+    std::cout << "\nsecond half (from t = " << Fixed(h.split_s, 2) << " s, " << h.scored
+              << " instants): shipped " << Fixed(h.shipped.rms_mm, 3)
+              << " mm RMS, autoregressive reference (order " << r.reference.order << ", lags "
+              << Fixed(1000.0 * r.reference.history_s, 0) << " ms, fitted on the first half) "
+              << Fixed(h.reference.rms_mm, 3) << " mm: shipped/reference "
+              << Fixed(h.shipped.rms_mm / h.reference.rms_mm, 3) << "\n";
+  } else {
+    std::cout << "\nno autoregressive reference: " << r.reference_note << "\n";
+  }
   std::cout << "\nEKF: " << r.harmonics << " harmonics, heart rate "
-            << (bpm_valid ? Fixed(bpm, 1) + " bpm" : std::string("none (outside 30-220 bpm)"))
-            << " at the end, " << r.reacquisitions << " rate re-acquisition(s), measurement noise "
-            << Fixed(r.noise_mm, 3) << " mm, " << r.accepted << " accepted, " << r.rejected
-            << " rejected, " << r.initialisations << " initialisation(s), respiration term "
+            << (bpm_valid ? Fixed(bpm, 1) + " bpm"
+                          : std::string("none (") + r.heart_rate.reason + ")")
+            << " over the last " << Fixed(r.heart_rate_window_s, 1) << " s, filter rate "
+            << Fixed(60.0 * r.rate_hz, 1) << " bpm at the end, " << r.reacquisitions
+            << " rate re-acquisition(s), measurement noise " << Fixed(r.noise_mm, 3) << " mm, "
+            << r.accepted << " accepted, " << r.rejected << " rejected, " << r.initialisations
+            << " initialisation(s), respiration term "
             << (r.respiration ? "on (" + Fixed(r.offset_rate_q_mm_s, 2) + " mm/s/√s)" : "off")
             << " [" << RespirationMode(f) << "]\n";
 }

@@ -74,6 +74,48 @@ TEST(PredictCli, RealisticTraceShipsTheBestPredictor) {
   ExpectContains(none.err, "TRACE");
 }
 
+// The autoregressive reference (fitted on the first half, scored on the second) beside
+// what ships on the same second half; the heart rate with its evidence, null on a breathing
+// trace; a trace too short for the reference's split says how long it must be.
+TEST(PredictCli, TheReferenceAndTheHeartRateAreReported) {
+  const RunResult r = RunCli("predict " + kPhantom + " --column AP3_x --json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const auto& ref = j["reference"];
+  ASSERT_TRUE(ref.is_object()) << j.dump(2);
+  EXPECT_NEAR(ref["split_s"].get<double>(), 0.5 * 749 * 0.05, 1e-6);  // 750 samples at 20 Hz
+  EXPECT_GE(ref["order"].get<int>(), 16);  // about a heartbeat of lags (17 samples)
+  EXPECT_GT(ref["cross_validation"].size(), 5u);
+  const auto& half = j["second_half"];
+  EXPECT_NEAR(half["from_s"].get<double>(), ref["split_s"].get<double>(), 1e-12);
+  EXPECT_NEAR(half["shipped_over_reference"].get<double>(),
+              half["shipped"]["rms_mm"].get<double>() / ref["rms_mm"].get<double>(), 1e-9);
+  EXPECT_LE(half["shipped_over_reference"].get<double>(), 1.1);  // the issue's figure
+  const auto& hr = j["ekf"]["heart_rate"];
+  EXPECT_TRUE(hr["significant"].get<bool>());
+  EXPECT_NEAR(j["ekf"]["heart_rate_bpm"].get<double>(), 71.5, 0.05 * 71.5);
+  ExpectContains(hr["reason"].get<std::string>(), "heartbeat: 71.");
+  // A breathing marker: no heart rate, and why.
+  const RunResult b =
+      RunCli("predict " + std::string(ECHOSERVO_DATA_DIR) + "/respiration/UAC_138.csv --json");
+  ASSERT_EQ(b.rc, 0) << b.err;
+  const auto jb = nlohmann::json::parse(b.out);
+  EXPECT_TRUE(jb["ekf"]["heart_rate_bpm"].is_null());
+  EXPECT_FALSE(jb["ekf"]["heart_rate"]["significant"].get<bool>());
+  EXPECT_FALSE(jb["ekf"]["heart_rate"]["reason"].get<std::string>().empty());
+  // Too short for the split: the figures still come, the reference says how long it must be.
+  const RunResult s = RunCli("predict --realistic regular --duration 7 --json");
+  ASSERT_EQ(s.rc, 0) << s.err;
+  const auto js = nlohmann::json::parse(s.out);
+  EXPECT_TRUE(js["reference"].is_null());
+  EXPECT_TRUE(js["second_half"].is_null());
+  ExpectContains(js["reference_note"].get<std::string>(),
+                 "the trace spans 7.0 s; the autoregressive reference needs at least 8.2 s");
+  const RunResult st = RunCli("predict --realistic regular --duration 7");
+  ASSERT_EQ(st.rc, 0) << st.err;
+  ExpectContains(st.out, "no autoregressive reference: ");
+}
+
 TEST(PredictCli, SyntheticTraceAtTheVolumeRateMeetsTheIssueFigure) {
   TempDir dir("predict_cli", true);
   const std::string trace = dir.str() + "/mitral.csv";
