@@ -1,146 +1,176 @@
 #include "tracking/reflector_line.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <stdexcept>
 #include <string>
-#include <vector>
 
 namespace echoservo::tracking {
 namespace {
 
-struct RlPeak {
-  double x = 0.0;
-  double y = 0.0;
-};
-
-// Least-squares y = a + b·x over `points` (at least 2 distinct x).
-bool RlFitDepthLine(const std::vector<RlPeak>& points, double* a, double* b) {
-  const double n = static_cast<double>(points.size());
-  if (points.size() < 2) return false;
-  double sx = 0, sy = 0;
-  for (const RlPeak& p : points) {
-    sx += p.x;
-    sy += p.y;
-  }
-  const double mx = sx / n, my = sy / n;
-  double sxx = 0, sxy = 0;
-  for (const RlPeak& p : points) {
-    sxx += (p.x - mx) * (p.x - mx);
-    sxy += (p.x - mx) * (p.y - my);
-  }
-  if (!(sxx > 0.0)) return false;
-  *b = sxy / sxx;
-  *a = my - *b * mx;
-  return true;
-}
-
-std::vector<RlPeak> RlInliers(const std::vector<RlPeak>& peaks, double a, double b, double tol) {
-  std::vector<RlPeak> in;
-  for (const RlPeak& p : peaks)
-    if (std::abs(p.y - (a + b * p.x)) <= tol) in.push_back(p);
-  return in;
+// Orthogonal least-squares line through `points` (PLUS's PlaneParametersEstimator::
+// LeastSquaresEstimate): the mean, and the normal = the scatter's eigenvector of the smallest
+// eigenvalue, signed as PLUS's EISPACK solver returns it (n_y < 0 when the points spread more
+// along x than y, else n_x > 0; checked against a port of tred2/tql2 on 20 000 random point
+// sets). nullopt when all points coincide.
+std::optional<ConsensusLine> RlOrthogonalFit(std::span<const Eigen::Vector2d> points) {
+  if (points.size() < 2) return std::nullopt;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const Eigen::Vector2d& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+  for (const Eigen::Vector2d& p : points) scatter += (p - mean) * (p - mean).transpose();
+  if (!(scatter.trace() > 0.0)) return std::nullopt;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(scatter);
+  Eigen::Vector2d normal = eig.eigenvectors().col(0);  // eigenvalues ascending
+  if (scatter(0, 0) > scatter(1, 1) ? normal.y() > 0.0 : normal.x() < 0.0) normal = -normal;
+  ConsensusLine line;
+  line.point = mean;
+  line.direction = Eigen::Vector2d(-normal.y(), normal.x());
+  line.inliers = static_cast<int>(points.size());
+  double ss = 0.0;
+  for (const Eigen::Vector2d& p : points) ss += std::pow(normal.dot(p - mean), 2);
+  line.rms_px = std::sqrt(ss / static_cast<double>(points.size()));
+  return line;
 }
 
 }  // namespace
 
+PixelRegion FitClipToFrame(const ClipRectangle& clip, int width, int height) {
+  if (clip.width <= 0 || clip.height <= 0) return {0, 0, width, height};
+  if (clip.x < 0 || clip.y < 0 || clip.x >= width || clip.y >= height) {
+    throw std::invalid_argument("clip rectangle origin (" + std::to_string(clip.x) + ", " +
+                                std::to_string(clip.y) + ") lies outside the " +
+                                std::to_string(width) + " x " + std::to_string(height) +
+                                " pixel frame");
+  }
+  // PLUS cuts a rectangle reaching past the frame at the frame's edge.
+  return {clip.x, clip.y, std::min(clip.width, width - clip.x),
+          std::min(clip.height, height - clip.y)};
+}
+
+std::optional<ScanlinePeak> LargestPeak(std::span<const int> profile, double fraction) {
+  if (profile.empty()) return std::nullopt;
+  const double threshold = fraction * *std::max_element(profile.begin(), profile.end());
+  ScanlinePeak best, current;
+  bool under = false;
+  for (std::size_t i = 0; i < profile.size(); ++i) {
+    const int v = profile[i];
+    if (v > threshold && !under) {
+      under = true;
+      current = {static_cast<int>(i), static_cast<int>(i) + 1, v, v};
+    } else if (v > threshold && under) {
+      current.area += v;
+      current.end = static_cast<int>(i) + 1;
+      current.max = std::max(current.max, v);
+    } else if (v < threshold && under) {
+      under = false;
+      if (current.area > best.area) best = current;
+    }
+    // v == threshold: PLUS neither opens nor closes a run (nor adds to its area).
+  }
+  if (best.area == 0) return std::nullopt;
+  return best;
+}
+
+std::optional<double> PeakCentreOfGravity(std::span<const int> profile, int start,
+                                          double fraction) {
+  if (profile.empty() || start < 0 || static_cast<std::size_t>(start) >= profile.size())
+    return std::nullopt;
+  const double threshold = fraction * *std::max_element(profile.begin(), profile.end());
+  double weighted = 0.0;
+  long long sum = 0;
+  std::size_t i = static_cast<std::size_t>(start);
+  for (; i < profile.size() && profile[i] > threshold; ++i) {
+    weighted += static_cast<double>(i) * profile[i];
+    sum += profile[i];
+  }
+  if (sum == 0 || i == profile.size()) return std::nullopt;
+  return weighted / static_cast<double>(sum);
+}
+
+std::vector<int> ScanlineColumns(const PixelRegion& region, int count) {
+  std::vector<int> columns;
+  if (count < 2 || region.width < 1) return columns;
+  const double spacing = static_cast<double>(region.width - 1) / (count - 1);
+  for (int i = 0; i < count; ++i)
+    columns.push_back(region.x + static_cast<int>(std::trunc(spacing * i)));
+  return columns;
+}
+
+std::optional<ConsensusLine> FitConsensusLine(std::span<const Eigen::Vector2d> points,
+                                              double inlier_px) {
+  const std::size_t n = points.size();
+  if (n < 2) return std::nullopt;
+  const double tol2 = inlier_px * inlier_px;
+  std::vector<char> votes(n), best_votes;
+  std::size_t best_count = 0;
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    for (std::size_t j = i + 1; j < n; ++j) {
+      const Eigen::Vector2d d = points[j] - points[i];
+      const double len = d.norm();
+      if (!(len > 0.0)) continue;  // PLUS: a singular pair gives no hypothesis
+      const Eigen::Vector2d normal(-d.y() / len, d.x() / len);
+      std::size_t count = 0;
+      for (std::size_t k = 0; k < n; ++k) {
+        const double s = normal.dot(points[k] - points[i]);
+        votes[k] = s * s < tol2;
+        count += votes[k] ? 1 : 0;
+      }
+      if (count > best_count) {
+        best_count = count;
+        best_votes = votes;
+      }
+    }
+  }
+  if (best_count == 0) return std::nullopt;
+  std::vector<Eigen::Vector2d> inliers;
+  for (std::size_t k = 0; k < n; ++k)
+    if (best_votes[k]) inliers.push_back(points[k]);
+  return RlOrthogonalFit(inliers);
+}
+
 std::optional<ReflectorLine> FindReflectorLine(std::span<const std::uint8_t> pixels, int width,
                                                int height, const ReflectorLineOptions& o) {
-  if (width < 3 || height < 3 ||
+  if (width < 1 || height < 1 ||
       pixels.size() != static_cast<std::size_t>(width) * static_cast<std::size_t>(height)) {
     throw std::invalid_argument("FindReflectorLine: frame of " + std::to_string(pixels.size()) +
                                 " pixels is not " + std::to_string(width) + " x " +
-                                std::to_string(height) + " (both at least 3)");
+                                std::to_string(height));
   }
-  if (!(o.peak_fraction > 0.0 && o.peak_fraction <= 1.0) || !(o.min_peak >= 0.0) ||
-      !(o.inlier_px > 0.0) || !(o.min_inliers > 0.0 && o.min_inliers <= 1.0) ||
-      o.ransac_iterations < 1 || o.skip_rows < 0 || o.skip_rows >= height - 2) {
-    throw std::invalid_argument("FindReflectorLine: options out of range");
+  if (o.scanlines < 2 || !(o.peak_fraction > 0.0 && o.peak_fraction <= 1.0) ||
+      !(o.inlier_px > 0.0) || !(o.min_direction_x >= 0.0 && o.min_direction_x < 1.0)) {
+    throw std::invalid_argument(
+        "FindReflectorLine: options out of range (scanlines >= 2, peak_fraction in (0, 1], "
+        "inlier_px > 0, min_direction_x in [0, 1))");
   }
-  const auto at = [&](int x, int y) {
-    return static_cast<double>(
-        pixels[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
-               static_cast<std::size_t>(x)]);
-  };
-  double frame_max = 0.0;
-  for (int y = o.skip_rows; y < height; ++y)
-    for (int x = 0; x < width; ++x) frame_max = std::max(frame_max, at(x, y));
-  const double threshold = std::max(o.min_peak, o.peak_fraction * frame_max);
-
-  // Per column: the brightest pixel, the run around it above half its value, and the
-  // intensity centre of gravity of that run above the half level (sub-pixel depth).
-  std::vector<RlPeak> peaks;
-  for (int x = 0; x < width; ++x) {
-    int best = o.skip_rows;
-    for (int y = o.skip_rows + 1; y < height; ++y)
-      if (at(x, y) > at(x, best)) best = y;
-    const double peak = at(x, best);
-    if (peak < threshold || peak <= 0.0) continue;
-    const double half = 0.5 * peak;
-    int lo = best, hi = best;
-    while (lo > o.skip_rows && at(x, lo - 1) > half) --lo;
-    while (hi < height - 1 && at(x, hi + 1) > half) ++hi;
-    double sw = 0.0, swy = 0.0;
-    for (int y = lo; y <= hi; ++y) {
-      const double w = at(x, y) - half;
-      sw += w;
-      swy += w * y;
-    }
-    peaks.push_back({static_cast<double>(x), sw > 0.0 ? swy / sw : static_cast<double>(best)});
+  const PixelRegion region = FitClipToFrame(o.clip, width, height);
+  std::vector<Eigen::Vector2d> peaks;
+  std::vector<int> profile(static_cast<std::size_t>(region.height));
+  for (const int x : ScanlineColumns(region, o.scanlines)) {
+    for (int r = 0; r < region.height; ++r)
+      profile[static_cast<std::size_t>(r)] =
+          pixels[static_cast<std::size_t>(region.y + r) * static_cast<std::size_t>(width) +
+                 static_cast<std::size_t>(x)];
+    const std::optional<ScanlinePeak> peak = LargestPeak(profile, o.peak_fraction);
+    if (!peak) continue;
+    const std::optional<double> cog = PeakCentreOfGravity(profile, peak->start, o.peak_fraction);
+    if (!cog) continue;
+    peaks.emplace_back(static_cast<double>(x), region.y + *cog);
   }
-  const auto needed = static_cast<std::size_t>(
-      std::max(3.0, std::ceil(o.min_inliers * static_cast<double>(width))));
-  if (peaks.size() < needed) return std::nullopt;
-
-  // RANSAC over column pairs (a fixed pseudo-random sequence: the same frame gives the same
-  // line), scored by inlier count, then by the inliers' residual sum.
-  std::size_t best_count = 0;
-  double best_cost = 0.0, best_a = 0.0, best_b = 0.0;
-  std::uint64_t state = 0x9E3779B97F4A7C15ULL;
-  const auto next = [&](std::size_t n) {
-    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
-    return static_cast<std::size_t>((state >> 33) % n);
-  };
-  for (int it = 0; it < o.ransac_iterations; ++it) {
-    const std::size_t i = next(peaks.size());
-    const std::size_t j = next(peaks.size());
-    if (peaks[i].x == peaks[j].x) continue;
-    const double b = (peaks[j].y - peaks[i].y) / (peaks[j].x - peaks[i].x);
-    const double a = peaks[i].y - b * peaks[i].x;
-    std::size_t count = 0;
-    double cost = 0.0;
-    for (const RlPeak& p : peaks) {
-      const double r = std::abs(p.y - (a + b * p.x));
-      if (r <= o.inlier_px) {
-        ++count;
-        cost += r;
-      }
-    }
-    if (count > best_count || (count == best_count && cost < best_cost)) {
-      best_count = count;
-      best_cost = cost;
-      best_a = a;
-      best_b = b;
-    }
-  }
-  if (best_count < needed) return std::nullopt;
-  double a = best_a, b = best_b;
-  std::vector<RlPeak> in = RlInliers(peaks, a, b, o.inlier_px);
-  for (int refine = 0; refine < 2; ++refine) {
-    if (!RlFitDepthLine(in, &a, &b)) return std::nullopt;
-    in = RlInliers(peaks, a, b, o.inlier_px);
-  }
-  if (in.size() < needed || !RlFitDepthLine(in, &a, &b)) return std::nullopt;
-  double ss = 0.0;
-  for (const RlPeak& p : in) ss += (p.y - (a + b * p.x)) * (p.y - (a + b * p.x));
-  ReflectorLine line;
-  line.depth_px = a + b * 0.5 * (width - 1);
-  line.slope = b;
-  line.columns = static_cast<int>(peaks.size());
-  line.inliers = static_cast<int>(in.size());
-  line.rms_px = std::sqrt(ss / static_cast<double>(in.size()));
-  return line;
+  // PLUS only logs when fewer than 5 scanlines have a peak; the fit needs 2.
+  const std::optional<ConsensusLine> line = FitConsensusLine(peaks, o.inlier_px);
+  if (!line || line->direction.x() < o.min_direction_x) return std::nullopt;
+  const double t = (region.x + 0.5 * region.width - line->point.x()) / line->direction.x();
+  ReflectorLine out;
+  out.depth_px = std::abs(line->point.y() + t * line->direction.y());
+  out.slope = line->direction.y() / line->direction.x();
+  out.scanlines = static_cast<int>(peaks.size());
+  out.inliers = line->inliers;
+  out.rms_px = line->rms_px;
+  return out;
 }
 
 }  // namespace echoservo::tracking

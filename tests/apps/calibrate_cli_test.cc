@@ -2,8 +2,10 @@
 // the tracker is PLUS's own water-tank recording (data/plus); the video is written here by
 // hand (a MetaImage header and raw bytes, no echoservo code) with a tank bottom whose depth
 // follows that recording's real probe motion, stamped a known lag early. The lag comes back
-// within 2 ms, and its JSON feeds `report --tracker-lag`, which then uses it (not a search)
-// and says where it came from. Bad input: an unknown tool, a lag file that is not one.
+// within 2 ms with PLUS's frame counts and a confidence, and its JSON feeds `report
+// --tracker-lag`, which then uses it (not a search) and says where it came from. A video
+// without pixel spacing reports its reflector in pixels only. Bad input: an unknown tool, a
+// clip rectangle outside the frame, a lag file that is not one.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -34,10 +36,10 @@ using testing::ShellQuote;
 const fs::path kTracker = fs::path(ECHOSERVO_DATA_DIR) / "plus" /
                           "WaterTankBottomTranslationTrackerBuffer-trimmed.igs.mha";
 
-// Writes a PLUS video sequence (2D frames, 48 × 160 pixels of 0.4 mm) of a bright line at
-// 80 px + the probe's displacement along its principal direction, each frame stamped `lag`
-// before the tracker time of the motion it shows.
-void WriteVideo(const fs::path& path, double lag) {
+// Writes a PLUS video sequence (2D frames, 48 × 160 pixels of 0.4 mm, or ElementSpacing
+// 1 1 1 without `spacing`) of a bright line at 80 px + the probe's displacement along its
+// principal direction, each frame stamped `lag` before the tracker time of the motion it shows.
+void WriteVideo(const fs::path& path, double lag, bool spacing = true) {
   const auto poses = testing::ScanProbePoses(kTracker);
   std::vector<double> t;
   std::vector<Eigen::Vector3d> p;
@@ -74,7 +76,7 @@ void WriteVideo(const fs::path& path, double lag) {
   std::ofstream out(path, std::ios::binary);
   out << "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
       << "CompressedData = False\nDimSize = " << w << " " << h << " " << n
-      << "\nElementSpacing = 0.4 0.4 1\nElementType = MET_UCHAR\n"
+      << "\nElementSpacing = " << (spacing ? "0.4 0.4 1" : "1 1 1") << "\nElementType = MET_UCHAR\n"
       << "UltrasoundImageOrientation = MF\n"
       << header << "ElementDataFile = LOCAL\n"
       << pixels;
@@ -92,13 +94,20 @@ TEST(CalibrateCli, TemporalLagOfRealMotionFeedsTheReport) {
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_NEAR(j["tracker_lag_s"].get<double>(), lag, 0.002);  // issue 19's bound
   EXPECT_GT(j["correlation"].get<double>(), 0.99);
-  // 30 frames/s over the recording's 20.7 s less 1 s (the search window) at each end; the
-  // tracker samples within ±1 s of those frames: all 801 but the up to 2 at each end that
-  // the first and last frame's distance (< 1/30 s, tracker period 26 ms) leaves out.
-  EXPECT_NEAR(j["video_frames_used"].get<double>(), 30.0 * 18.7, 3.0);
-  EXPECT_GE(j["tracker_frames_used"].get<int>(), 797);
-  EXPECT_LE(j["tracker_frames_used"].get<int>(), 801);
+  // PLUS's stages: the video signal is every frame in the files' common range (the video's
+  // first 2 frames precede the tracker's first pose: 621 − 2); the tracker is cropped by the
+  // max lag, 1 s, at each end of that range: its 714 poses in 7416.680 … 7435.293 s.
+  EXPECT_EQ(j["video_frames_used"].get<int>(), 619);
+  EXPECT_EQ(j["tracker_frames_used"].get<int>(), 714);
   EXPECT_EQ(j["tool"], "ProbeToTracker");
+  // The confidence: one motion period (1.02 s) fits in ±1 s, a second peak clearly lower.
+  EXPECT_NEAR(j["confidence"]["peak_lag_s"].get<double>(), lag, 0.001);
+  EXPECT_LT(j["confidence"]["lag_sd_s"].get<double>(), 0.001);
+  ASSERT_TRUE(j["confidence"]["second_peak"].is_object()) << r.out;
+  EXPECT_LT(j["confidence"]["second_peak"]["correlation"].get<double>(), 0.95);
+  EXPECT_DOUBLE_EQ(j["video"]["pixel_spacing_mm"].get<double>(), 0.4);
+  EXPECT_NEAR(j["video"]["reflector_peak_to_peak_mm"].get<double>(),
+              0.4 * j["video"]["reflector_peak_to_peak_px"].get<double>(), 1e-9);
   const fs::path lag_json = dir.path() / "lag.json";
   std::ofstream(lag_json) << r.out;
 
@@ -125,14 +134,36 @@ TEST(CalibrateCli, TemporalLagOfRealMotionFeedsTheReport) {
   EXPECT_NE(given.out.find("tracker lag --tracker-lag 0.0637 s (given)"), std::string::npos)
       << given.out;
 
-  // Bad input: an unknown tool (the tools listed), a lag file that is not one, both a lag and
-  // an offset centre.
+  // A video without pixel spacing (MetaIO's 1 1 1): pixels only, and says so.
+  const fs::path bare = dir.path() / "bare.igs.mha";
+  WriteVideo(bare, lag, false);
+  const RunResult px = RunCli("calibrate temporal --video " + ShellQuote(bare.string()) +
+                              " --tracker " + ShellQuote(kTracker.string()) + " --json");
+  ASSERT_EQ(px.rc, 0) << px.err;
+  const auto pj = nlohmann::json::parse(px.out);
+  EXPECT_TRUE(pj["video"]["reflector_peak_to_peak_mm"].is_null());
+  EXPECT_TRUE(pj["video"]["pixel_spacing_mm"].is_null());
+  EXPECT_NE(pj["video"]["pixel_spacing"].get<std::string>().find("unknown"), std::string::npos);
+  const RunResult given_spacing =
+      RunCli("calibrate temporal --video " + ShellQuote(bare.string()) + " --tracker " +
+             ShellQuote(kTracker.string()) + " --pixel-spacing 0.4 --json");
+  ASSERT_EQ(given_spacing.rc, 0) << given_spacing.err;
+  EXPECT_EQ(nlohmann::json::parse(given_spacing.out)["video"]["pixel_spacing"], "--pixel-spacing");
+
+  // Bad input: an unknown tool (the tools listed), a clip rectangle outside the frames, a lag
+  // file that is not one, both a lag and an offset centre.
   const RunResult tool = RunCli("calibrate temporal" + inputs + " --tool NeedleToTracker");
   EXPECT_NE(tool.rc, 0);
-  EXPECT_NE(tool.err.find("no tool NeedleToTracker in the file (tools in the file: "
-                          "ProbeToTracker, ReferenceToTracker, StylusToTracker)"),
+  EXPECT_NE(tool.err.find("no tool NeedleToTracker in the file, nor two tools to compose it "
+                          "from (tools in the file: ProbeToTracker, ReferenceToTracker, "
+                          "StylusToTracker)"),
             std::string::npos)
       << tool.err;
+  const RunResult clip = RunCli("calibrate temporal" + inputs + " --clip-rect 60 0 10 10");
+  EXPECT_NE(clip.rc, 0);
+  EXPECT_NE(clip.err.find("clip rectangle origin (60, 0) lies outside the 48 x 160 pixel frame"),
+            std::string::npos)
+      << clip.err;
   const RunResult bad = RunCli(report + " --tracker-lag " + ShellQuote(video.string()));
   EXPECT_NE(bad.rc, 0);
   EXPECT_NE(bad.err.find("not the JSON of `echoservo calibrate temporal --json`"),
