@@ -341,8 +341,16 @@ void ValidateSettings(const PipelineSettings& next) {
   };
   const auto& fit = next.tracker.detector.fit;
   const auto& edge = next.tracker.detector.edge;
-  require(fit.wire_diameter_mm <= fit.sheath_diameter_mm, "detector.wire_diameter_mm",
-          "<=", "detector.sheath_diameter_mm", "the guidewire runs inside the sheath");
+  if (fit.sheath_diameter_mm > 0)
+    require(fit.wire_diameter_mm < fit.sheath_diameter_mm, "detector.wire_diameter_mm", "<",
+            "detector.sheath_diameter_mm", "the guidewire runs in the sheath's lumen");
+  else
+    require(fit.wire_diameter_mm == 0, "detector.wire_diameter_mm", "0 with",
+            "detector.sheath_diameter_mm", "no near-wall model without a sheath");
+  require(fit.sheath_diameter_mm <= 2 * fit.fit_radius_mm, "detector.sheath_diameter_mm", "<= 2 x",
+          "detector.fit_radius_mm",
+          "the axis fit gathers the wall's echoes within fit_radius_mm of their line; raise it "
+          "for a wider sheath");
   require(edge.contact_gap_mm < edge.close_gap_mm, "target.contact_gap_mm", "<",
           "target.close_gap_mm", "contact is the closest of the close gaps");
   // Then each stage's own validation: the bounds the modules declare, and what else they check.

@@ -20,6 +20,9 @@ namespace {
 
 using Sampler = imaging::VolumeSampler;
 
+// A trilinear sample this high lies among clipped voxels (the 8-bit display's top, 255).
+constexpr double kClippedDisplay = 254.5;
+
 // Max (or mean) of the samples over a small disc ⟂ the axis (the centre and 8 points at
 // radius r, offsets computed once) at s. The max keeps a thin bright line bright under a
 // sub-voxel axis error; the mean averages speckle over a broad surface.
@@ -60,8 +63,9 @@ class DiscProfile {
 
 // The max of the disc's first echoes at s (DiscProfile's disc): a sample counts when no sample
 // up to `look_back_mm` nearer the transducer along its beam (tracking/echo_axis_fit.h
-// BeamDirectionAt) is brighter. With none, the disc's smallest sample (all tails: not the
-// wire's echo).
+// BeamDirectionAt) is brighter, nor clipped when it is clipped (the display's top: a
+// saturated echo and its ring-down are one run of equal values). With none, the disc's
+// smallest sample (all tails: not the wire's echo).
 class FirstEchoDiscProfile {
  public:
   FirstEchoDiscProfile(const imaging::Volume& v, const Line3& l, const Eigen::Vector3d& u,
@@ -91,7 +95,7 @@ class FirstEchoDiscProfile {
       for (int q = 1; q <= steps_ && first; ++q) {
         const double y = sample_(p + q * back);
         if (std::isnan(y)) break;
-        first = !(y > x);
+        first = !(y > x || (y >= kClippedDisplay && x >= kClippedDisplay));
       }
       if (first && !(best >= x)) best = x;
     }

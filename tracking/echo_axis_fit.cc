@@ -29,6 +29,14 @@ struct Echo {
 // they are (no first-echo rule, no near-wall offset).
 constexpr double kMinBeamAxisSin = 0.2588;  // sin 15°
 
+// The top of a log-compressed 8-bit display: a voxel there is clipped, at least this bright.
+constexpr std::uint8_t kDisplayTop = 255;
+
+// The sheath's far wall echoes a diameter behind its near wall along the beam; the first-echo
+// look-back reaches this much further (the pulse's 3σ, ~0.9 mm, and the image's depth scale,
+// assumed/true sound speed, up to ~+8 %).
+constexpr double kFarWallMarginMm = 1.0;
+
 // A voxel above the background near the search line; whether it is a first echo is decided
 // when a pass first needs it (the test does not depend on the line).
 struct Candidate {
@@ -41,7 +49,9 @@ struct Candidate {
 
 // The first-echo rule: comet tails and the far wall lie behind a brighter echo along the
 // beam, so a voxel with a brighter one up to `first_echo_mm` nearer the transducer is not
-// one. The look-back steps along the beam in index space.
+// one; nor is a clipped voxel (kDisplayTop) with a clipped one nearer: a saturated echo and
+// its ring-down read as one run of equal values, whose first voxel is the echo's front.
+// The look-back steps along the beam in index space.
 class FirstEchoTest {
  public:
   FirstEchoTest(const imaging::Volume& v, double first_echo_mm, const BeamGeometry& beams,
@@ -72,7 +82,8 @@ class FirstEchoTest {
                  qk = static_cast<long>(at.z());
       if (qi >= dims.x() || qj >= dims.y() || qk >= dims.z()) break;
       if (qi == c.i && qj == c.j && qk == c.k) continue;
-      if (vox[qi + qj * sy + qk * sz] > c.value) return false;
+      const std::uint8_t nearer = vox[qi + qj * sy + qk * sz];
+      if (nearer > c.value || (nearer == kDisplayTop && c.value == kDisplayTop)) return false;
     }
     return true;
   }
@@ -283,8 +294,23 @@ void EchoAxisFitOptions::Validate() const {
   params::kFirstEchoMm.Check(first_echo_mm, "EchoAxisFitOptions");
   params::kSheathDiameterMm.Check(sheath_diameter_mm, "EchoAxisFitOptions");
   params::kWireDiameterMm.Check(wire_diameter_mm, "EchoAxisFitOptions");
-  if (!(wire_diameter_mm >= 0 && wire_diameter_mm <= sheath_diameter_mm))
-    bad("wire_diameter_mm", "must be in [0, sheath_diameter_mm]");
+  // What the near-wall model can describe: a guidewire inside the sheath's lumen (thinner
+  // than the sheath; none modelled without a sheath), and a sheath whose wall's echoes lie
+  // within the fit's cylinder (radius ≤ fit_radius_mm around the echoes' line).
+  if (sheath_diameter_mm > 0 && !(wire_diameter_mm < sheath_diameter_mm))
+    bad("wire_diameter_mm", "= " + formats::FormatParameterValue(wire_diameter_mm) +
+                                " must be below sheath_diameter_mm = " +
+                                formats::FormatParameterValue(sheath_diameter_mm) +
+                                " (the guidewire runs in the sheath's lumen)");
+  if (sheath_diameter_mm == 0 && wire_diameter_mm != 0)
+    bad("wire_diameter_mm", "must be 0 when sheath_diameter_mm is 0 (no near-wall model)");
+  if (!(sheath_diameter_mm <= 2 * fit_radius_mm))
+    bad("sheath_diameter_mm",
+        "= " + formats::FormatParameterValue(sheath_diameter_mm) +
+            " is wider than 2 × fit_radius_mm = " +
+            formats::FormatParameterValue(2 * fit_radius_mm) +
+            ": the fit gathers the wall's echoes within fit_radius_mm of their line (raise "
+            "fit_radius_mm for a wider sheath)");
   if (!(min_sheath_span_mm >= 0 && std::isfinite(min_sheath_span_mm)))
     bad("min_sheath_span_mm", "must be finite, ≥ 0");
   if (!(echo_level_fraction >= 0 && echo_level_fraction < 1))
@@ -358,7 +384,11 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
   // Each pass gathers the voxels of its cylinder; a voxel's first-echo test (which does not
   // depend on the line) runs once, when a pass first meets the voxel.
   // Unknown beams: no first-echo rule and no near-wall offset (the symmetric centre-line fit).
-  const FirstEchoTest first_echo(v, beams.known() ? o.first_echo_mm : 0.0, beams, start.direction);
+  // The look-back reaches past the sheath's far wall, a diameter behind its near wall.
+  const double look_back_mm =
+      o.first_echo_mm > 0 ? std::max(o.first_echo_mm, o.sheath_diameter_mm + kFarWallMarginMm)
+                          : 0.0;
+  const FirstEchoTest first_echo(v, beams.known() ? look_back_mm : 0.0, beams, start.direction);
   std::vector<Candidate> pool;
   Line3 pool_line = line;  // the cylinder `pool` was gathered in (relative to the origin)
   double pool_radius = 0, threshold = bg;

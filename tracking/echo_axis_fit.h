@@ -8,8 +8,13 @@
 // knows its image-to-probe transform (Volume::has_image_to_probe) or the caller gives them;
 // when the beams are unknown the fit is the symmetric centre-line fit (no first-echo rule, no
 // near-wall offset: the axis through the centre of the bright cross-section).
-// Errors: Validate throws std::invalid_argument naming the field; FitEchoAxis returns empty
-// when fewer than 4 echoes lie near the start line.
+// Clipped echoes: a voxel at the display's top (255) is only known to be at least that bright;
+// one behind another clipped voxel along its beam is the same saturated echo (a metal wire's
+// ring-down), not a first echo — so a saturated wire's echo locus is its near wall, ρ from its
+// axis, as the model says (docs/detector.md#algorithm, step 4).
+// Errors: Validate throws std::invalid_argument naming the field, for a catheter the model
+// cannot describe too (a wire not thinner than the sheath, a sheath wider than the fit's
+// cylinder); FitEchoAxis returns empty when fewer than 4 echoes lie near the start line.
 // Details: docs/detector.md#algorithm (step 4)
 #pragma once
 
@@ -41,7 +46,8 @@ inline constexpr formats::ParameterSpec kFirstEchoMm{
     20,
     3.0,
     "axis fit: look-back along the beam for the first-echo rule (a brighter echo this close "
-    "nearer the probe makes a sample a reverberation); 0: off"};
+    "nearer the probe makes a sample a reverberation or the far wall; at least the sheath's "
+    "diameter + 1 mm is used); 0: off"};
 // ≤ 10 mm: 30 Fr, above the largest cardiac delivery sheaths (24–26 Fr, ~8.7 mm).
 inline constexpr formats::ParameterSpec kSheathDiameterMm{
     "detector.sheath_diameter_mm",
@@ -51,7 +57,8 @@ inline constexpr formats::ParameterSpec kSheathDiameterMm{
     10,
     2.5,
     "the sheath's outer diameter: a beam echoes at the near wall, so the axis lies a radius "
-    "behind the echoes; 0: the echoes are the axis; <= 10 mm (30 Fr)"};
+    "behind the echoes; 0: the echoes are the axis; <= 10 mm (30 Fr) and <= 2 x "
+    "detector.fit_radius_mm (the fit gathers the wall's echoes within that radius)"};
 inline constexpr formats::ParameterSpec kWireDiameterMm{
     "detector.wire_diameter_mm",
     "mm",
@@ -59,8 +66,8 @@ inline constexpr formats::ParameterSpec kWireDiameterMm{
     0,
     10,
     0.9,
-    "the guidewire's outer diameter (its near-wall offset beyond the sheath), at most the "
-    "sheath's"};
+    "the guidewire's outer diameter (its near-wall offset beyond the sheath), below the "
+    "sheath's (it runs in the sheath's lumen); 0 only with no sheath model"};
 }  // namespace params
 
 struct EchoAxisFitOptions {
@@ -68,9 +75,9 @@ struct EchoAxisFitOptions {
   double fit_radius_mm = params::kFitRadiusMm.default_value;
   // look-back along the beam for the first-echo rule; 0: off
   double first_echo_mm = params::kFirstEchoMm.default_value;
-  // outer diameter of the sheath; 0: echoes are the axis
+  // outer diameter of the sheath; 0: echoes are the axis; ≤ 2 fit_radius_mm
   double sheath_diameter_mm = params::kSheathDiameterMm.default_value;
-  // outer diameter of the guidewire, ≤ sheath_diameter_mm
+  // outer diameter of the guidewire, < sheath_diameter_mm (0 when that is 0)
   double wire_diameter_mm = params::kWireDiameterMm.default_value;
   // The axis comes from the sheath's echoes alone when they span at least this much.
   double min_sheath_span_mm = 10.0;
