@@ -1,7 +1,5 @@
 #include "estimation/ar_reference.h"
 
-#include "estimation/ar_predictor.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <algorithm>
@@ -9,6 +7,8 @@
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+
+#include "estimation/ar_predictor.h"
 
 namespace echoservo::estimation {
 namespace {
@@ -33,10 +33,10 @@ std::vector<std::size_t> RunStarts(const MotionTrace& m, double dt) {
 }
 
 struct Rows {
-  int width = 0;                 // parameters of the largest order
-  std::vector<std::size_t> n;    // sample index of each row
-  std::vector<double> u;         // width values per row
-  std::vector<double> y;         // target − x_n
+  int width = 0;               // parameters of the largest order
+  std::vector<std::size_t> n;  // sample index of each row
+  std::vector<double> u;       // width values per row
+  std::vector<double> y;       // target − x_n
   const double* Row(std::size_t r) const { return u.data() + r * static_cast<std::size_t>(width); }
 };
 

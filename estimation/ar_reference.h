@@ -15,13 +15,13 @@
 // Split: t_mid = the middle of the measurements' span; training rows have their target at
 // or before t_mid, scored instants are measurements at or after t_mid. Order: the
 // candidates kArCandidateOrders (estimation/ar_predictor.h) up to max_history_s of
-// lags and a tenth of the training rows (kArRowsPerParameter), each scored by 5-fold blocked cross-validation
-// (training rows within the order's reach of the held-out block left out); the lowest
-// summed squared validation error wins. Ridge kArRidge × the Gram's mean diagonal.
-// Errors: FitArReference throws std::invalid_argument for a trace too short for the split
-// (each half must span min_half_s and hold the rows the smallest order needs; the message
-// says how long the trace must be) or bad options.
-// Details: docs/predictor.md#the-autoregressive-reference-estimationar_referenceh
+// lags and a tenth of the training rows (kArRowsPerParameter), each scored by 5-fold blocked
+// cross-validation (training rows within the order's reach of the held-out block left out); the
+// lowest summed squared validation error wins. Ridge kArRidge × the Gram's mean diagonal. Errors:
+// FitArReference throws std::invalid_argument for a trace too short for the split (each half must
+// span min_half_s and hold the rows the smallest order needs; the message says how long the trace
+// must be) or bad options. Details:
+// docs/predictor.md#the-autoregressive-reference-estimationar_referenceh
 #pragma once
 
 #include <cstddef>
@@ -40,16 +40,16 @@ struct ArReferenceOptions {
 };
 
 struct ArReference {
-  int order = 0;             // p (parameters, the offset included)
-  int stride = 1;            // samples between lags
-  double history_s = 0.0;    // (p − 1) × stride × the median interval
-  double split_s = 0.0;      // t_mid: fitted before, scored from
-  std::size_t trained = 0;   // training rows
-  std::size_t scored = 0;    // scored instants (second half)
-  std::size_t held = 0;      // of them, predicted by holding (history broken by a gap)
-  std::vector<int> candidates;           // orders tried
-  std::vector<double> validation_rms_mm; // their cross-validated RMS
-  std::vector<double> weights;           // w₀ … w_{p−1}
+  int order = 0;                          // p (parameters, the offset included)
+  int stride = 1;                         // samples between lags
+  double history_s = 0.0;                 // (p − 1) × stride × the median interval
+  double split_s = 0.0;                   // t_mid: fitted before, scored from
+  std::size_t trained = 0;                // training rows
+  std::size_t scored = 0;                 // scored instants (second half)
+  std::size_t held = 0;                   // of them, predicted by holding (history broken by a gap)
+  std::vector<int> candidates;            // orders tried
+  std::vector<double> validation_rms_mm;  // their cross-validated RMS
+  std::vector<double> weights;            // w₀ … w_{p−1}
   // The scored instants and predictions (x at t + L), in order.
   std::vector<double> t_s;
   std::vector<double> predicted_mm;

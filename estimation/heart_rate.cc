@@ -15,9 +15,9 @@
 namespace echoservo::estimation {
 namespace {
 
-constexpr double kAcfTolerance = 0.15;   // |lag·f₀ − 1| for agreement
-constexpr double kHalfPeriodShare = 0.8; // half-period repetition this close: a sub-harmonic
-constexpr int kTrendOrder = 2;           // quadratic detrend
+constexpr double kAcfTolerance = 0.15;    // |lag·f₀ − 1| for agreement
+constexpr double kHalfPeriodShare = 0.8;  // half-period repetition this close: a sub-harmonic
+constexpr int kTrendOrder = 2;            // quadratic detrend
 constexpr int kGoldenIterations = 30;
 
 std::string RateFormat(const char* f, auto... args) {
@@ -148,8 +148,9 @@ HeartRateEstimate EstimateHeartRate(const double* t, const double* x, std::size_
   const double hi = std::min(o.max_hz, 0.45 * fs);
   r.rate_hz = std::clamp(o.min_hz, o.min_hz, o.max_hz);
   if (!(hi > lo)) {
-    r.reason = RateFormat("too short or too sparse: %.1f s at %.1f Hz holds no two beats in %.0f-%.0f bpm",
-                      span, native, 60.0 * o.min_hz, 60.0 * o.max_hz);
+    r.reason =
+        RateFormat("too short or too sparse: %.1f s at %.1f Hz holds no two beats in %.0f-%.0f bpm",
+                   span, native, 60.0 * o.min_hz, 60.0 * o.max_hz);
     return r;
   }
   const std::vector<double> y = UniformDetrended(t, x, n, fs);
@@ -171,7 +172,8 @@ HeartRateEstimate EstimateHeartRate(const double* t, const double* x, std::size_
     const long c = std::lround(f / df) - 1;
     double best = 0.0;
     for (long i = c - 1; i <= c + 1; ++i)
-      if (i >= 0 && i < static_cast<long>(grid.size())) best = std::max(best, grid[static_cast<std::size_t>(i)]);
+      if (i >= 0 && i < static_cast<long>(grid.size()))
+        best = std::max(best, grid[static_cast<std::size_t>(i)]);
     return best;
   };
   auto harmonic_sum = [&](double f0, auto&& power) {
@@ -197,7 +199,10 @@ HeartRateEstimate EstimateHeartRate(const double* t, const double* x, std::size_
     const double g = 0.5 * (std::sqrt(5.0) - 1.0);
     for (int i = 0; i < kGoldenIterations; ++i) {
       const double c = b - g * (b - a), d = a + g * (b - a);
-      if (harmonic_sum(c, exact) > harmonic_sum(d, exact)) b = d; else a = c;
+      if (harmonic_sum(c, exact) > harmonic_sum(d, exact))
+        b = d;
+      else
+        a = c;
     }
     return 0.5 * (a + b);
   };
@@ -326,14 +331,14 @@ HeartRateEstimate EstimateHeartRate(const double* t, const double* x, std::size_
   r.p_value = d2 > 0.0 ? std::min(1.0, independent * FisherFSurvival(r.f_statistic, d1, d2)) : 1.0;
   r.acf_period_s = static_cast<double>(best_lag) / fs;
   r.acf_at_period = best_acf;
-  r.acf_agrees = std::abs(r.acf_period_s * f0 - 1.0) <= kAcfTolerance &&
-                 best_acf >= o.min_repeat_correlation;
+  r.acf_agrees =
+      std::abs(r.acf_period_s * f0 - 1.0) <= kAcfTolerance && best_acf >= o.min_repeat_correlation;
   r.significant = r.p_value < o.false_alarm && r.acf_agrees;
   r.reason = RateFormat(
       "%s: %.1f bpm, F %.3g (family-wise p %.2g, threshold %.2g), autocorrelation %.2f at "
       "%.3f s (period %.3f s)%s",
-      r.significant ? "heartbeat" : "no significant heartbeat", 60.0 * f0, r.f_statistic,
-      r.p_value, o.false_alarm, best_acf, r.acf_period_s, period,
+      r.significant ? "heartbeat" : "no significant heartbeat", 60.0 * f0, r.f_statistic, r.p_value,
+      o.false_alarm, best_acf, r.acf_period_s, period,
       r.acf_agrees ? "" : " - the motion does not repeat at this period");
   return r;
 }

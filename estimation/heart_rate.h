@@ -14,11 +14,11 @@
 // false_alarm); and by the autocorrelation: a motion that repeats at half the candidate's
 // period (≥ 0.8 × as well) has twice its rate. A candidate within half a resolution bin
 // of a multiple of the strongest line below the band, when that line is stronger than f₀
-// and adds significantly, is a harmonic of a slower motion (respiration): no heart rate. Significance of the result: the harmonic
-// regression at f₀ (K harmonics, quadratic trend) beats the trend alone in an F-test whose
-// family-wise p over the band's independent frequencies is below false_alarm, AND the
-// autocorrelation agrees: on the trace less its moving average over one period (what is
-// slower than the beat removed), its maximum over lags [0.6, 1.4]/f₀ lies within ±15 % of
+// and adds significantly, is a harmonic of a slower motion (respiration): no heart rate.
+// Significance of the result: the harmonic regression at f₀ (K harmonics, quadratic trend) beats
+// the trend alone in an F-test whose family-wise p over the band's independent frequencies is below
+// false_alarm, AND the autocorrelation agrees: on the trace less its moving average over one period
+// (what is slower than the beat removed), its maximum over lags [0.6, 1.4]/f₀ lies within ±15 % of
 // 1/f₀ and is at least min_repeat_correlation (the motion repeats beat to beat).
 // Out: HeartRateEstimate; rate_hz is the best candidate even when not significant (reason
 // says why it is not). Bounded: rate_hz ∈ [min_hz, max_hz] always.
@@ -45,10 +45,10 @@ struct HeartRateEstimate {
   bool significant = false;
   double rate_hz = 0.0;  // the best candidate (see `significant`)
   double bpm() const { return 60.0 * rate_hz; }
-  double p_value = 1.0;         // family-wise, of the F-test
+  double p_value = 1.0;  // family-wise, of the F-test
   double f_statistic = 0.0;
-  double acf_period_s = 0.0;    // the autocorrelation's peak lag near 1/rate
-  double acf_at_period = 0.0;   // its value there (−1 … 1)
+  double acf_period_s = 0.0;   // the autocorrelation's peak lag near 1/rate
+  double acf_at_period = 0.0;  // its value there (−1 … 1)
   bool acf_agrees = false;
   double fundamental_share = 0.0;  // A²(f₀) / HS(f₀)
   int corrections = 0;             // sub-harmonic or harmonic corrections applied

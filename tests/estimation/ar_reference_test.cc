@@ -82,7 +82,7 @@ TEST(ArReference, OnWhiteNoiseItPredictsTheMeanNotTheNewestSample) {
   MotionTrace zero = m;
   for (double& x : zero.position_mm) x = 0.0;  // the truth: white noise's mean
   const double rms = std::sqrt(std::pow(ReferenceRms(r, zero, 0.1), 2) + 1.0);  // + σ² of x
-  EXPECT_LT(rms, 1.15);          // near σ(1 + 1/(2p)), far below the hold's √2
+  EXPECT_LT(rms, 1.15);  // near σ(1 + 1/(2p)), far below the hold's √2
 }
 
 TEST(ArReference, StridedAtHighRatesAndHeldAfterAGap) {

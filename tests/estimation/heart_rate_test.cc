@@ -73,8 +73,8 @@ TEST(HeartRate, FindsTheFundamentalWithAStrongSecondHarmonicAcrossRatesAndRatios
         b.rate_hz = rate;
         b.seed = static_cast<unsigned>(++cases);
         const HeartRateEstimate e = EstimateOf(MakeRateTrace(b));
-        const std::string what = std::to_string(bpm) + " bpm, second " +
-                                 std::to_string(second) + "x, " + std::to_string(rate) + " Hz";
+        const std::string what = std::to_string(bpm) + " bpm, second " + std::to_string(second) +
+                                 "x, " + std::to_string(rate) + " Hz";
         EXPECT_TRUE(e.significant) << what << ": " << e.reason;
         EXPECT_NEAR(e.bpm(), bpm, 0.05 * bpm) << what << ": " << e.reason;
       }
@@ -114,8 +114,8 @@ TEST(HeartRate, NoneOnNoiseARandomWalkAndBreathingAlone) {
   breathing = MakeRateTrace(b);
   for (std::size_t i = 0; i < breathing.x.size(); ++i)  // a peaked breath: harmonics
     breathing.x[i] += 2.0 * std::sin(2 * std::numbers::pi * 0.5 * breathing.t[i] + 0.3);
-  for (const auto& [name, tr] : {std::pair{"noise", &noise}, std::pair{"walk", &walk},
-                                 std::pair{"breathing", &breathing}}) {
+  for (const auto& [name, tr] :
+       {std::pair{"noise", &noise}, std::pair{"walk", &walk}, std::pair{"breathing", &breathing}}) {
     const HeartRateEstimate e = EstimateOf(*tr);
     EXPECT_FALSE(e.significant) << name << ": " << e.reason;
     EXPECT_GE(e.rate_hz, 0.5) << name;  // bounded even when none
@@ -140,8 +140,7 @@ TEST(HeartRate, TheRealPhantomAgreesAcrossItsTwelveChannels) {
   for (const char* c : {"POI_x", "POI_y", "POI_z", "AP1_x", "AP1_y", "AP1_z", "AP2_x", "AP2_y",
                         "AP2_z", "AP3_x", "AP3_y", "AP3_z"}) {
     const MotionTrace m = ReadMotionTrace(testing::PhantomPath(), c);
-    const HeartRateEstimate e =
-        EstimateHeartRate(m.t_s.data(), m.position_mm.data(), m.size());
+    const HeartRateEstimate e = EstimateHeartRate(m.t_s.data(), m.position_mm.data(), m.size());
     EXPECT_TRUE(e.significant) << c << ": " << e.reason;
     lo = std::min(lo, e.bpm());
     hi = std::max(hi, e.bpm());
@@ -155,8 +154,7 @@ TEST(HeartRate, TheRealBreathingTracesHoldNoHeartbeat) {
     for (const char* c : {"x", "y", "z"}) {
       const MotionTrace m =
           ReadMotionTrace(std::string(ECHOSERVO_DATA_DIR) + "/respiration/" + f + ".csv", c);
-      const HeartRateEstimate e =
-          EstimateHeartRate(m.t_s.data(), m.position_mm.data(), m.size());
+      const HeartRateEstimate e = EstimateHeartRate(m.t_s.data(), m.position_mm.data(), m.size());
       EXPECT_FALSE(e.significant) << f << " " << c << ": " << e.reason;
     }
   }
@@ -171,7 +169,8 @@ TEST(HeartRate, BadInputIsNamed) {
   ExpectContains(InvalidArgumentMessage([&] { EstimateOf(bad); }), "sample 5 is not finite");
   bad = tr;
   bad.t[9] = bad.t[8];
-  ExpectContains(InvalidArgumentMessage([&] { EstimateOf(bad); }), "strictly increasing (sample 9)");
+  ExpectContains(InvalidArgumentMessage([&] { EstimateOf(bad); }),
+                 "strictly increasing (sample 9)");
   HeartRateOptions o;
   o.max_hz = 0.4;
   ExpectContains(
