@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <cstdio>
+#include <cstring>
 #include <numbers>
 #include <random>
 #include <stdexcept>
@@ -151,9 +152,10 @@ SimulatedScannerOptions SceneOptions(const std::string& name, int index, std::mt
 
 // Independent-generator classes (tracking/independent_volumes.h): "beam_AA" (angle AA° to the
 // beam, the volume knows its image-to-probe pose), "beam_AA_unknown" (it does not),
-// "indep_free" (no catheter, unknown beams).
+// "indep_free" (no catheter, unknown beams); "deep_AA" (AA° to the beam, the tip 80–100 mm
+// from the apex, SetDeepObliquePhysics, known beams), "deep_free" (no catheter, unknown beams).
 bool IsIndependentClass(const std::string& name) {
-  return name.rfind("beam_", 0) == 0 || name == "indep_free";
+  return name.rfind("beam_", 0) == 0 || name.rfind("deep_", 0) == 0 || name == "indep_free";
 }
 
 AccuracyVolume MakeIndependentAccuracyVolume(const VolumeClass& cls, int index, std::uint64_t seed,
@@ -168,12 +170,24 @@ AccuracyVolume MakeIndependentAccuracyVolume(const VolumeClass& cls, int index, 
   o.catheter_azimuth_deg = 360 * u(rng);
   o.tip_offset_mm = Eigen::Vector3d(-3 + 6 * u(rng), -3 + 6 * u(rng), -3 + 6 * u(rng));
   o.seed = rng();
+  const bool deep = cls.name.rfind("deep_", 0) == 0;
+  double depth_mm = 0;
+  if (deep) {
+    // The tip 80–100 mm from the apex: the grid lies deeper (the apex further above it).
+    SetDeepObliquePhysics(o);
+    depth_mm = 80 + 20 * u(rng);
+    PlaceTipAtDepth(o, depth_mm);
+  }
   IndependentVolume first = MakeIndependentVolume(o);
   char label[160];
   std::snprintf(label, sizeof label, "angle %.0f azimuth %.1f tip offset %.1f %.1f %.1f%s",
                 o.catheter_angle_deg, o.catheter_azimuth_deg, o.tip_offset_mm.x(),
                 o.tip_offset_mm.y(), o.tip_offset_mm.z(),
                 o.store_image_to_probe ? "" : " (no image-to-probe)");
+  if (deep) {
+    const std::size_t used = std::strlen(label);
+    std::snprintf(label + used, sizeof label - used, " tip depth %.1f", depth_mm);
+  }
   AccuracyVolume out{std::move(first.volume), first.truth, std::nullopt, std::nullopt, label};
   if (!cls.catheter) out.truth.reset();
   if (next_frame && cls.catheter) {
@@ -227,6 +241,16 @@ const std::vector<VolumeClass>& VolumeClasses() {
       {"beam_80_unknown", "beam_80 without an image-to-probe pose", true, false},
       {"indep_free",
        "independent generator, catheter-free: speckled blood and a tissue surface, unknown beams",
+       false, false},
+      {"deep_50",
+       "independent generator: 50° to the beam, tip 80–100 mm deep, specular fall-off, "
+       "attenuation and TGC, noise, lateral PSF widening with depth, known beams",
+       true, false},
+      {"deep_56", "deep_50's physics at 56° to the beam (issue 32's miss)", true, false},
+      {"deep_60", "deep_50's physics at 60° to the beam", true, false},
+      {"deep_70", "deep_50's physics at 70° to the beam", true, false},
+      {"deep_80", "deep_50's physics at 80° to the beam", true, false},
+      {"deep_free", "deep_50's physics without a catheter (the grid 80–100 mm deep), unknown beams",
        false, false},
   };
   return classes;

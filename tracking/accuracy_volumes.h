@@ -35,7 +35,9 @@ struct VolumeClass {
 // free_tank, free_clutter and spine_phantom; then the independent generator's
 // (tracking/independent_volumes.h) beam_00 … beam_80 (catheter at that angle to the beam, comet
 // tails, the volume knows its beams), beam_00_unknown … beam_80_unknown (it does not) and the
-// catheter-free indep_free.
+// catheter-free indep_free; deep_50, deep_56, deep_60, deep_70, deep_80 (that angle to the beam,
+// the tip 80–100 mm deep, specular fall-off with obliquity, attenuation and TGC, noise, lateral
+// PSF widening with depth; known beams) and the catheter-free deep_free.
 const std::vector<VolumeClass>& VolumeClasses();
 // Throws std::invalid_argument listing the known names.
 const VolumeClass& FindVolumeClass(const std::string& name);

@@ -377,7 +377,9 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
 }
 
 std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& start, double bg,
-                                       const EchoAxisFitOptions& o, const BeamGeometry& beams) {
+                                       const EchoAxisFitOptions& o, const BeamGeometry& beams,
+                                       double max_along_mm) {
+  const Eigen::Vector3d along = start.direction.normalized();
   const Eigen::Vector3d origin = start.point;
   Line3 line{Eigen::Vector3d::Zero(), start.direction.normalized()};
   std::vector<Echo> echoes;
@@ -401,6 +403,8 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
     } else {
       std::vector<Candidate> next = GatherCandidates(v, Line3{line.point + origin, line.direction},
                                                      radius, threshold, origin);
+      if (std::isfinite(max_along_mm))
+        std::erase_if(next, [&](const Candidate& c) { return c.p.dot(along) > max_along_mm; });
       pool_line = line;
       pool_radius = radius;
       if (pool.empty() && o.echo_level_fraction > 0 && !next.empty()) {
@@ -509,6 +513,13 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
     }
   }
   fit.axis = Line3{axis.point + origin, axis.direction};
+  fit.echo_s_min = std::numeric_limits<double>::infinity();
+  fit.echo_s_max = -fit.echo_s_min;
+  for (const auto& e : echoes) {
+    const double s = fit.axis.Parameter(e.p + origin);
+    fit.echo_s_min = std::min(fit.echo_s_min, s);
+    fit.echo_s_max = std::max(fit.echo_s_max, s);
+  }
   return fit;
 }
 

@@ -18,6 +18,7 @@
 // Details: docs/detector.md#algorithm (step 4)
 #pragma once
 
+#include <limits>
 #include <optional>
 
 #include "formats/parameter_spec.h"
@@ -96,6 +97,8 @@ struct EchoAxisFit {
   double wire_direction = 0;  // +1: the wire lies at s > sheath_end_s along axis.direction
   int echo_count = 0;
   double rms_mm = 0.0;  // weighted RMS distance of the moved echoes to the axis
+  // The echoes' extent along `axis` (its parameters, min and max).
+  double echo_s_min = 0.0, echo_s_max = 0.0;
 };
 
 // Where the beams come from, in the image frame (mm): from a probe apex (a pyramidal or
@@ -128,9 +131,11 @@ Eigen::Vector3d BeamDirectionAt(const imaging::Volume& volume, const Eigen::Vect
 // Empty when fewer than 4 echoes lie near `start`. Beams from BeamGeometry::FromVolume.
 std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& volume, const Line3& start,
                                        double background, const EchoAxisFitOptions& options);
-// The same with the beams given; unknown beams: the symmetric centre-line fit.
-std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& volume, const Line3& start,
-                                       double background, const EchoAxisFitOptions& options,
-                                       const BeamGeometry& beams);
+// The same with the beams given; unknown beams: the symmetric centre-line fit. Voxels farther
+// than `max_along_mm` along `start` from start.point are left out (the tissue beyond a tip).
+std::optional<EchoAxisFit> FitEchoAxis(
+    const imaging::Volume& volume, const Line3& start, double background,
+    const EchoAxisFitOptions& options, const BeamGeometry& beams,
+    double max_along_mm = std::numeric_limits<double>::infinity());
 
 }  // namespace echoservo::tracking

@@ -16,6 +16,7 @@ namespace {
 struct Segment {
   Eigen::Vector3d a, b;
   double amplitude;
+  double lateral_psf_mm;  // σ across the beam at the segment's range
 };
 
 // Amplitude at x of segment `g` blurred by the Gaussian PSF of inverse covariance `P`
@@ -36,9 +37,8 @@ double BlurredSegment(const Segment& g, const Eigen::Vector3d& x, const Eigen::M
   return g.amplitude * std::exp(-0.5 * q) * (Phi((len - mu) / sigma_s) - Phi(-mu / sigma_s));
 }
 
-// Separable Gaussian smoothing of a complex field along one grid axis; the kernel's weights
-// have unit energy, so unit-variance white noise stays unit-variance.
-void SmoothAxis(std::vector<float>& re, std::vector<float>& im, int n, int axis, double sigma_vox) {
+// Unit-energy Gaussian kernel of σ sigma_vox (voxels), half-width ⌈3σ⌉ (≥ 1).
+std::vector<double> UnitEnergyKernel(double sigma_vox) {
   const int half = std::max(1, static_cast<int>(std::ceil(3 * sigma_vox)));
   std::vector<double> k(static_cast<std::size_t>(2 * half + 1));
   double energy = 0;
@@ -48,6 +48,22 @@ void SmoothAxis(std::vector<float>& re, std::vector<float>& im, int n, int axis,
     energy += w * w;
   }
   for (auto& w : k) w /= std::sqrt(energy);
+  return k;
+}
+
+// Separable Gaussian smoothing of a complex field along one grid axis; the kernel's weights
+// have unit energy, so unit-variance white noise stays unit-variance. Along axes 0 and 1 (in
+// a plane k) σ is sigma_by_plane[k] (voxels), along axis 2 sigma_by_plane[0].
+void SmoothAxis(std::vector<float>& re, std::vector<float>& im, int n, int axis,
+                const std::vector<double>& sigma_by_plane) {
+  std::vector<std::vector<double>> kernels;  // per distinct σ, in plane order
+  std::vector<std::size_t> kernel_of(static_cast<std::size_t>(n), 0);
+  for (int p = 0; p < n; ++p) {
+    const double sg = sigma_by_plane[axis == 2 ? 0 : static_cast<std::size_t>(p)];
+    if (p == 0 || sg != sigma_by_plane[axis == 2 ? 0 : static_cast<std::size_t>(p - 1)])
+      kernels.push_back(UnitEnergyKernel(sg));
+    kernel_of[static_cast<std::size_t>(p)] = kernels.size() - 1;
+  }
   const std::ptrdiff_t stride = axis == 0 ? 1 : axis == 1 ? n : static_cast<std::ptrdiff_t>(n) * n;
   std::vector<float> lr(static_cast<std::size_t>(n)), li(static_cast<std::size_t>(n));
   for (int a = 0; a < n; ++a)
@@ -58,6 +74,9 @@ void SmoothAxis(std::vector<float>& re, std::vector<float>& im, int n, int axis,
         base = static_cast<std::ptrdiff_t>(a) * n + static_cast<std::ptrdiff_t>(b) * n * n;
       if (axis == 1) base = a + static_cast<std::ptrdiff_t>(b) * n * n;
       if (axis == 2) base = a + static_cast<std::ptrdiff_t>(b) * n;
+      const std::vector<double>& k =
+          kernels[kernel_of[axis == 2 ? 0 : static_cast<std::size_t>(b)]];
+      const int half = static_cast<int>(k.size() / 2);
       for (int i = 0; i < n; ++i) {
         double sr = 0, si = 0;
         for (int t = -half; t <= half; ++t) {
@@ -119,6 +138,18 @@ void IndependentVolumeOptions::Validate() const {
   if (!(target_gap_mm > 0 && target_gap_mm < 100)) bad("target_gap_mm", "must be in (0, 100)");
   if (!(dynamic_range_db > 0 && dynamic_range_db <= 120))
     bad("dynamic_range_db", "must be in (0, 120]");
+  if (!(attenuation_db_per_mm >= 0 && attenuation_db_per_mm < 2))
+    bad("attenuation_db_per_mm", "must be in [0, 2)");
+  if (!(tgc_db_per_mm >= 0 && tgc_db_per_mm < 2)) bad("tgc_db_per_mm", "must be in [0, 2)");
+  if (!(gain_reference_mm > 0 && gain_reference_mm < 1000))
+    bad("gain_reference_mm", "must be in (0, 1000)");
+  if (!(noise_amplitude >= 0 && noise_amplitude < 1)) bad("noise_amplitude", "must be in [0, 1)");
+  for (double w : {specular_width_deg, wire_specular_width_deg})
+    if (!(w >= 0 && w <= 90)) bad("specular widths", "must be in [0, 90]");
+  for (double f : {specular_diffuse, wire_specular_diffuse})
+    if (!(f >= 0 && f <= 1)) bad("specular diffuse parts", "must be in [0, 1]");
+  if (!(lateral_focus_mm == 0 || (lateral_focus_mm > 0 && lateral_focus_mm < 1000)))
+    bad("lateral_focus_mm", "must be 0 or in (0, 1000)");
 }
 
 IndependentVolume MakeIndependentVolume(const IndependentVolumeOptions& o) {
@@ -131,6 +162,14 @@ IndependentVolume MakeIndependentVolume(const IndependentVolumeOptions& o) {
   auto beam_at = [&](const Eigen::Vector3d& q) -> Eigen::Vector3d {
     if (o.parallel_beam) return Eigen::Vector3d::UnitZ();
     return (q - apex).normalized();
+  };
+  // Range from the transducer, and the lateral PSF there.
+  auto range_at = [&](const Eigen::Vector3d& q) {
+    return o.parallel_beam ? o.apex_distance_mm + q.z() : (q - apex).norm();
+  };
+  auto lateral_psf_at = [&](double r) {
+    return o.lateral_focus_mm > 0 ? o.lateral_psf_mm * std::max(1.0, r / o.lateral_focus_mm)
+                                  : o.lateral_psf_mm;
   };
 
   // The catheter: the tip at the grid centre (plus offset); its direction makes the given angle
@@ -171,35 +210,48 @@ IndependentVolume MakeIndependentVolume(const IndependentVolumeOptions& o) {
   // near side turns with the beam), each with its comet tail.
   std::vector<Segment> segments;
   const double R = 0.5 * o.sheath_diameter_mm, rho = 0.5 * o.wire_diameter_mm;
-  auto add_piece = [&](double s0, double s1, double radius, double amp, bool tail) {
+  // Specular fall-off of a wall echo with the angle of incidence ψ (the beam against the
+  // wall's normal ⟂ the axis: sin ψ = |b·d|).
+  auto specular = [&](const Eigen::Vector3d& b, double width_deg, double diffuse) {
+    if (width_deg <= 0) return 1.0;
+    const double psi = std::asin(std::min(1.0, std::abs(b.dot(d)))) * 180 / std::numbers::pi;
+    return diffuse + (1 - diffuse) * std::exp(-0.5 * (psi / width_deg) * (psi / width_deg));
+  };
+  auto add_piece = [&](double s0, double s1, double radius, double amp, bool tail, bool wire) {
     const Eigen::Vector3d a = tip + s0 * d, b = tip + s1 * d;
-    const Eigen::Vector3d m = near_wall(0.5 * (a + b));
-    segments.push_back({a + radius * m, b + radius * m, amp});
+    const Eigen::Vector3d mid = 0.5 * (a + b);
+    const Eigen::Vector3d m = near_wall(mid);
+    const Eigen::Vector3d bm = beam_at(mid);
+    const double psf = lateral_psf_at(range_at(mid));
+    amp *= wire ? specular(bm, o.wire_specular_width_deg, o.wire_specular_diffuse)
+                : specular(bm, o.specular_width_deg, o.specular_diffuse);
+    segments.push_back({a + radius * m, b + radius * m, amp, psf});
     if (!tail) return;
-    const Eigen::Vector3d bm = beam_at(0.5 * (a + b));
     double ak = amp;
     for (int k = 1; k <= o.reverb_copies; ++k) {
       ak *= o.reverb_decay;
       const Eigen::Vector3d shift = k * o.reverb_spacing_mm * bm;
-      segments.push_back({a + radius * m + shift, b + radius * m + shift, ak});
+      segments.push_back({a + radius * m + shift, b + radius * m + shift, ak, psf});
     }
   };
   const double s_sheath = -o.wire_protrusion_mm;
   for (double s = entry_s; s < s_sheath - 1e-9; s += 2.0) {
     const double s1 = std::min(s + 2.0, s_sheath);
-    add_piece(s, s1, R, o.sheath_amplitude, true);
-    add_piece(s, s1, -R, o.far_wall_amplitude, false);
+    add_piece(s, s1, R, o.sheath_amplitude, true, false);
+    add_piece(s, s1, -R, o.far_wall_amplitude, false, false);
   }
   for (double s = s_sheath; s < -1e-9; s += 2.0)
-    add_piece(s, std::min(s + 2.0, 0.0), rho, o.wire_amplitude, true);
+    add_piece(s, std::min(s + 2.0, 0.0), rho, o.wire_amplitude, true, true);
   if (!o.catheter) segments.clear();
 
   // PSF inverse covariance in the grid frame (beam ≈ grid z; the pyramid's divergence over the
-  // volume is neglected in the blur, not in the geometry).
-  const Eigen::Matrix3d P = Eigen::Vector3d(1 / (o.lateral_psf_mm * o.lateral_psf_mm),
-                                            1 / (o.lateral_psf_mm * o.lateral_psf_mm),
-                                            1 / (o.axial_psf_mm * o.axial_psf_mm))
-                                .asDiagonal();
+  // volume is neglected in the blur, not in the geometry), σ across the beam as given.
+  auto psf_inverse = [&](double lateral) -> Eigen::Matrix3d {
+    return Eigen::Vector3d(1 / (lateral * lateral), 1 / (lateral * lateral),
+                           1 / (o.axial_psf_mm * o.axial_psf_mm))
+        .asDiagonal();
+  };
+  const Eigen::Matrix3d P = psf_inverse(o.lateral_psf_mm);
   // Interface echo of the tissue surface: σ of the PSF along the surface normal d.
   const double sigma_n = std::sqrt(1.0 / d.dot(P * d));
 
@@ -232,9 +284,14 @@ IndependentVolume MakeIndependentVolume(const IndependentVolumeOptions& o) {
         re[idx] = static_cast<float>(sc) * gauss(rng);
         im[idx] = static_cast<float>(sc) * gauss(rng);
       }
-  SmoothAxis(re, im, n, 0, o.lateral_psf_mm / h);
-  SmoothAxis(re, im, n, 1, o.lateral_psf_mm / h);
-  SmoothAxis(re, im, n, 2, o.axial_psf_mm / h);
+  // Lateral σ per plane k from the range of the plane's centre.
+  std::vector<double> lateral_vox(static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k)
+    lateral_vox[static_cast<std::size_t>(k)] =
+        lateral_psf_at(range_at(Eigen::Vector3d(0.5 * side, 0.5 * side, k * h))) / h;
+  SmoothAxis(re, im, n, 0, lateral_vox);
+  SmoothAxis(re, im, n, 1, lateral_vox);
+  SmoothAxis(re, im, n, 2, {o.axial_psf_mm / h});
 
   // The image frame: the grid's z axis along beam_direction.
   const Eigen::Matrix3d rot =
@@ -251,8 +308,9 @@ IndependentVolume MakeIndependentVolume(const IndependentVolumeOptions& o) {
   // log compression.
   std::vector<double> amp(nv);
   for (std::size_t i = 0; i < nv; ++i) amp[i] = std::hypot(re[i], im[i]);
-  const double reach = 4.0 * std::max(o.lateral_psf_mm, o.axial_psf_mm) + h;
   for (const auto& sg : segments) {
+    const double reach = 4.0 * std::max(sg.lateral_psf_mm, o.axial_psf_mm) + h;
+    const Eigen::Matrix3d Ps = psf_inverse(sg.lateral_psf_mm);
     const Eigen::Vector3d lo = (sg.a.cwiseMin(sg.b).array() - reach) / h,
                           hi = (sg.a.cwiseMax(sg.b).array() + reach) / h;
     const Eigen::Vector3i i0 = lo.array().ceil().cast<int>().max(0),
@@ -261,8 +319,11 @@ IndependentVolume MakeIndependentVolume(const IndependentVolumeOptions& o) {
       for (int j = i0.y(); j <= i1.y(); ++j)
         for (int i = i0.x(); i <= i1.x(); ++i)
           amp[static_cast<std::size_t>(i + n * (j + static_cast<std::ptrdiff_t>(n) * k))] +=
-              BlurredSegment(sg, grid_point(i, j, k), P);
+              BlurredSegment(sg, grid_point(i, j, k), Ps);
   }
+  // Receiver noise: its own random stream (the speckle stays the same with or without it).
+  std::mt19937_64 noise_rng(o.seed * 0xD1B54A32D192ED03ull + 777);
+  const bool depth_gain = o.attenuation_db_per_mm > 0 || o.tgc_db_per_mm > 0;
   for (int k = 0; k < n; ++k)
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i) {
@@ -271,6 +332,15 @@ IndependentVolume MakeIndependentVolume(const IndependentVolumeOptions& o) {
         double a = amp[idx];
         const double zn = (q - target).dot(d) / sigma_n;
         if (std::abs(zn) < 5) a += 3 * o.tissue_scatter * std::exp(-0.5 * zn * zn);
+        if (depth_gain || o.noise_amplitude > 0) {
+          const double dr = range_at(q) - o.gain_reference_mm;
+          a *= std::pow(10.0, (o.tgc_db_per_mm - o.attenuation_db_per_mm) * dr / 20);
+          if (o.noise_amplitude > 0) {
+            const double g = o.noise_amplitude * std::pow(10.0, o.tgc_db_per_mm * dr / 20);
+            const double nr = g * gauss(noise_rng), ni = g * gauss(noise_rng);
+            a = std::sqrt(a * a + nr * nr + ni * ni);
+          }
+        }
         const double db = 20 * std::log10(std::max(a, 1e-12));
         v.voxels()[idx] =
             static_cast<std::uint8_t>(std::clamp(std::lround(255 * (1 - db / floor_db)), 0L, 255L));
@@ -292,6 +362,29 @@ IndependentVolume MakeIndependentVolume(const IndependentVolumeOptions& o) {
   out.truth.target_visible = (target_idx.array() >= 0).all() && (target_idx.array() <= n - 1).all();
   out.truth.target_mm = rot * target;
   return out;
+}
+
+void SetDeepObliquePhysics(IndependentVolumeOptions& o) {
+  o.specular_width_deg = 10;
+  o.specular_diffuse = 0.15;
+  o.wire_specular_width_deg = 20;
+  o.wire_specular_diffuse = 0.3;
+  o.attenuation_db_per_mm = 0.3;
+  o.tgc_db_per_mm = 0.25;
+  o.gain_reference_mm = 60;
+  o.noise_amplitude = 0.002;
+  o.lateral_focus_mm = 60;
+}
+
+void PlaceTipAtDepth(IndependentVolumeOptions& o, double depth_mm) {
+  const Eigen::Vector3d& t = o.tip_offset_mm;
+  const double lateral2 = t.x() * t.x() + t.y() * t.y();
+  const double apex = std::sqrt(std::max(0.0, depth_mm * depth_mm - lateral2)) -
+                      0.5 * (o.size_voxels - 1) * o.voxel_mm - t.z();
+  if (!(std::isfinite(depth_mm) && depth_mm * depth_mm > lateral2 && apex > 0))
+    throw std::invalid_argument("PlaceTipAtDepth: depth_mm " + std::to_string(depth_mm) +
+                                " puts the grid above the apex");
+  o.apex_distance_mm = apex;
 }
 
 }  // namespace echoservo::tracking

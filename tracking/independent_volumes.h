@@ -11,6 +11,10 @@
 // transducer), each a line blurred analytically by the PSF; reverberation comet tails (copies of
 // those echoes displaced along the beam every reverb_spacing_mm, amplitude × reverb_decay each);
 // a shadow behind the catheter. Values are log-compressed to 0–255 over dynamic_range_db.
+// Depth and obliquity (all off by default): round-trip attenuation and time-gain compensation
+// by range from the apex, receiver noise amplified by the TGC, the sheath's and the wire's
+// specular echo falling off with the angle of incidence (to a rough, diffuse part), and a
+// lateral PSF widening beyond a focal range.
 // The grid's direction matrix is a rotation taking the grid's beam axis to `beam_direction`.
 // Units: mm, deg; truth in the volume's image frame (mm).
 // Errors: Validate (called by MakeIndependentVolume) throws std::invalid_argument naming the
@@ -56,6 +60,26 @@ struct IndependentVolumeOptions {
   double tissue_scatter = 0.04;      // of the tissue ahead
   double target_gap_mm = 5;          // tissue surface ahead of the tip, > 0
   double dynamic_range_db = 50;
+  // Depth (range r: distance from the apex; parallel beams: apex_distance_mm + depth in the
+  // grid). Every echo and the speckle × 10^((tgc − attenuation)·(r − gain_reference_mm)/20);
+  // receiver noise (complex Gaussian of σ noise_amplitude per component, white) ×
+  // 10^(tgc·(r − gain_reference_mm)/20): with full compensation the echoes keep their level
+  // and the noise rises with depth; without, they sink towards the noise and the display floor.
+  double attenuation_db_per_mm = 0;  // round trip, [0, 2)
+  double tgc_db_per_mm = 0;          // [0, 2)
+  double gain_reference_mm = 60;     // (0, 1000)
+  double noise_amplitude = 0;        // [0, 1)
+  // Obliquity: a smooth wall reflects back along the beam only near normal incidence. The
+  // sheath's walls (and their comet tails) × diffuse + (1 − diffuse)·exp(−½(ψ/width)²), ψ the
+  // angle between the beam and the wall's normal (90° − the catheter's angle to the beam);
+  // the same for the wire with its own width and diffuse part. Width 0: no fall-off.
+  double specular_width_deg = 0;  // [0, 90]
+  double specular_diffuse = 0.1;  // [0, 1]
+  double wire_specular_width_deg = 0;
+  double wire_specular_diffuse = 0.3;
+  // Lateral PSF beyond the focus: σ = lateral_psf_mm · max(1, r / lateral_focus_mm) (the
+  // beam diverges; a line keeps its peak over the speckle, which widens with it); 0: constant.
+  double lateral_focus_mm = 0;  // 0 or (0, 1000)
   std::uint64_t seed = 1;
 
   // Throws std::invalid_argument naming the field.
@@ -69,5 +93,15 @@ struct IndependentVolume {
 };
 
 IndependentVolume MakeIndependentVolume(const IndependentVolumeOptions& options);
+
+// Issue 32's depth and obliquity physics: the sheath's specular echo falls off with the angle of
+// incidence (width 10°) to a diffuse part of 0.15 (−16.5 dB), the guidewire's (width 20°) to
+// 0.3 (−10.5 dB); round-trip attenuation 0.3 dB/mm under a TGC of 0.25 dB/mm (reference 60 mm),
+// receiver noise 0.002 amplified by the TGC, the lateral PSF widening beyond 60 mm.
+void SetDeepObliquePhysics(IndependentVolumeOptions& options);
+// Sets apex_distance_mm so that the tip lies depth_mm from the apex (its range), the grid and
+// tip_offset_mm as they are. Throws std::invalid_argument when the grid would have to start
+// above the apex.
+void PlaceTipAtDepth(IndependentVolumeOptions& options, double depth_mm);
 
 }  // namespace echoservo::tracking

@@ -22,6 +22,12 @@ namespace {
 // The fine refinement's second stage searches next to this many of its first stage's best
 // directions (SearchConeCoarseToFine).
 constexpr int kFineTopK = 3;
+// The axis is fitted again on the echoes up to this far beyond the first tip, and that fit
+// kept when it turns the axis by more than kRefitMinTurnRad (1°) (EvaluateLine).
+// The refit runs only when the fit's echoes reach more than kFitReachMarginMm farther.
+constexpr double kFitBeyondTipMm = 1.0;
+constexpr double kFitReachMarginMm = 1.0;
+constexpr double kRefitMinTurnRad = 0.01745;
 
 // Median and MAD of line scores into scene.score_median / score_mad; false when empty.
 bool SetScoreStats(std::vector<double> sc, SceneBaseline& scene) {
@@ -41,6 +47,53 @@ double PeakConfidence(double z_score) {
 // Robust z-score of `score` among the scene's line scores.
 double RobustZ(const SceneBaseline& scene, double score) {
   return (score - scene.score_median) / (1.4826 * scene.score_mad + 1e-3 * score + 1e-12);
+}
+
+// The z-score against the rest of the scene. A full search's per-direction best lines mostly
+// lie on the brightest object (measured on the independent generator's catheters: 63–88 % of
+// the first stage's directions pass within kOwnEchoMm of the catheter), so the baseline grows
+// with that object's echo: the z-score says how much more the object scores along the line
+// than seen from the side. A catheter whose sheath has lost its specular echo (50–80° to the
+// beam) while its short guidewire stays bright looks compact from the side, and its z falls
+// to 4–8 (below the 7.8 that c_peak = 0.5 needs); against the directions whose best line
+// does not meet it, it measures 10–43. A compact reflector (a tissue cube) gains too (5.6 →
+// 9.0 measured), so this z counts only when the whole hemisphere's is not enough and the
+// bright run is long (RadonDetector::EvaluateLine).
+// Two lines "meet" when they pass within kOwnEchoMm of each other inside the volume's box
+// (grown by that much).
+constexpr double kOwnEchoMm = 3.0;
+// At least this fraction of the directions (and 24) must remain for the rest's statistics.
+constexpr double kMinRestFraction = 0.1;
+
+bool LinesMeet(const Line3& a, const Line3& b, const Eigen::AlignedBox3d& box, double r) {
+  const Eigen::Vector3d da = a.direction.normalized(), db = b.direction.normalized();
+  const Eigen::Vector3d w0 = a.point - b.point;
+  const double ab = da.dot(db), den = 1.0 - ab * ab;
+  if (den < 1e-9) return (w0 - w0.dot(da) * da).norm() < r;  // parallel
+  const double s = (ab * db.dot(w0) - da.dot(w0)) / den;
+  const double t = db.dot(w0) + s * ab;
+  const Eigen::Vector3d pa = a.point + s * da, pb = b.point + t * db;
+  return (pa - pb).norm() < r && box.exteriorDistance(pa) <= r;
+}
+
+// The scene's line-score statistics over the search's directions whose best line does not
+// meet `line`; invalid when too few remain.
+SceneBaseline RestOfScene(const SceneBaseline& scene, const RadonSearchResult& b,
+                          const RadonLevel& level, const Line3& line,
+                          const Eigen::AlignedBox3d& box) {
+  SceneBaseline rest = scene;
+  rest.valid = false;
+  std::vector<double> sc;
+  sc.reserve(b.scores.size());
+  for (std::size_t i = 0; i < b.scores.size() && i < b.peaks.size(); ++i)
+    if (!LinesMeet(line, PeakLine(level, b.directions[i], b.peaks[i]), box, kOwnEchoMm))
+      sc.push_back(b.scores[i]);
+  if (sc.size() < 24 ||
+      static_cast<double>(sc.size()) < kMinRestFraction * static_cast<double>(b.scores.size()))
+    return rest;
+  rest.valid = SetScoreStats(std::move(sc), rest);
+  rest.scores_without_line = true;
+  return rest;
 }
 
 // The search's two Radon levels, and the whole volume's coarse grid when it was pooled.
@@ -217,6 +270,9 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
                                      options_.hemisphere_search);
   }
   if (b.peak.score <= 0) return out;
+  // A full search's own scores: each candidate is also measured against the rest of the scene
+  // (RestOfScene).
+  const bool own_scores = !previous && !scene.valid;
   // The distribution of line scores over the hemisphere, unless known: a full search's own
   // scores, or, when tracking, a sparse set on the whole coarse level (the cone's
   // directions all see the line, and the tracking region holds little else).
@@ -262,10 +318,16 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
       peak = b.peaks[order[next]];
     }
     tried.push_back(dir);
+    const SceneBaseline rest =
+        own_scores && scene.valid
+            ? RestOfScene(scene, b, L1, PeakLine(L1, dir, peak), v.BoundingBoxMm())
+            : SceneBaseline{};
     // The confidence is a product of factors ≤ 1: a line whose peak factor alone is below
     // min_confidence cannot be found, and is not evaluated (a catheter-free volume's
     // runners-up, usually).
-    const double z = scene.valid ? RobustZ(scene, peak.score) : 0.0;
+    const double z = scene.valid ? std::max(RobustZ(scene, peak.score),
+                                            rest.valid ? RobustZ(rest, peak.score) : 0.0)
+                                 : 0.0;
     if (scene.valid && options_.min_confidence > 0 && PeakConfidence(z) < options_.min_confidence) {
       if (c == 0) {
         best.peak_z = z;
@@ -273,7 +335,8 @@ CatheterDetection RadonDetector::Run(const imaging::Volume& v, const Line3* prev
       }
       continue;
     }
-    CatheterDetection d = EvaluateLine(v, L1, L2, dir, peak, fine, window, bg, scene);
+    CatheterDetection d =
+        EvaluateLine(v, L1, L2, dir, peak, fine, window, bg, scene, rest.valid ? &rest : nullptr);
     d.tracked = previous != nullptr;
     if (d.found) return d;
     if (c == 0 || d.confidence > best.confidence) best = d;
@@ -286,7 +349,8 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
                                               const Eigen::Vector3d& direction,
                                               const RadonPeak& coarse_peak, const FineSearch& fine,
                                               const RadonWindow* window, double bg,
-                                              const SceneBaseline& scene) const {
+                                              const SceneBaseline& scene,
+                                              const SceneBaseline* rest) const {
   CatheterDetection out;
   out.baseline = scene;
   // Refine at the finer level, near the coarse line.
@@ -376,6 +440,35 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
       }
     }
   }
+  // The axis fitted again on the echoes up to kFitBeyondTipMm beyond the tip. The fit's
+  // cylinder runs on into the tissue ahead of the tip (the target), whose surface faces the
+  // beam as an oblique catheter does not: at 50–70° to the beam it echoes as brightly as a
+  // sheath that has lost its specular echo, and its voxels tilted the axis by 2–3° (the
+  // independent generator's deep classes). The refit starts from the fit's echo line (the
+  // cylinder around the echoes, as the fit's last pass) through the tip's point on it.
+  auto echo_line_at_tip = [](const EchoAxisFit& f, const TipEstimate& t) {
+    const Eigen::Vector3d d = f.echo_line.direction.dot(t.axis.direction) < 0
+                                  ? Eigen::Vector3d(-f.echo_line.direction)
+                                  : f.echo_line.direction;
+    return Line3{f.echo_line.point + f.echo_line.Parameter(t.tip_mm) * f.echo_line.direction, d};
+  };
+  // Only when the fit's echoes reach on beyond the tip (a catheter imaged near normal
+  // incidence outshines the tissue, whose voxels stay below the echo threshold), and kept only
+  // when it turns the axis by more than kRefitMinTurnRad.
+  const double s_tip = fit->axis.Parameter(tip.tip_mm);
+  const double reach = fit->axis.direction.dot(tip.axis.direction) >= 0 ? fit->echo_s_max - s_tip
+                                                                        : s_tip - fit->echo_s_min;
+  if (auto cut = reach > kFitBeyondTipMm + kFitReachMarginMm
+                     ? FitEchoAxis(v, echo_line_at_tip(*fit, tip), bg, options_.fit, beams,
+                                   kFitBeyondTipMm)
+                     : std::nullopt;
+      cut && AngleBetweenLines(cut->axis, fit->axis) > kRefitMinTurnRad) {
+    const TipEstimate retip = FindTip(v, cut->axis, bg, tip_edge);
+    if (retip.found) {
+      fit = std::move(cut);
+      tip = retip;
+    }
+  }
   out.axis = tip.axis;
   out.tip_mm = tip.tip_mm;
   out.line_length_mm = tip.line_length_mm;
@@ -407,14 +500,31 @@ CatheterDetection RadonDetector::EvaluateLine(const imaging::Volume& v, const Ra
   // only needs to be clear (z ≥ 5): in a volume full of bright tissue the other directions'
   // best lines are bright too (a catheter beside tissue has z 9–13 where one in water has
   // 20–35), while the tube check is what tells a catheter from a line within tissue.
-  const double c_peak = PeakConfidence(z_score);
+  // A z-score against the rest of the scene (`rest`, or a tracked frame's baseline measured so)
+  // counts only for a bright run of at least twice min_line_length_mm: a catheter shows its
+  // guidewire (8 mm) and some sheath, while a compact reflector is as bright from every side
+  // and gains as much from leaving its own projections out (tissue cubes of 3–6 mm: runs of
+  // 8–10 mm where their cross-section is dark around).
+  const bool long_run = out.line_length_mm >= 2.0 * options_.min_line_length_mm;
+  double c_peak = scene.scores_without_line && !long_run ? 0.0 : PeakConfidence(z_score);
+  out.peak_z = z_score;
+  if (rest && rest->valid && long_run && c_peak < options_.min_confidence) {
+    const double z_rest = RobustZ(*rest, coarse_peak.score);
+    if (PeakConfidence(z_rest) > c_peak) {
+      c_peak = PeakConfidence(z_rest);
+      out.peak_z = z_rest;
+      // Tracking measures the catheter against the same baseline.
+      out.baseline.score_median = rest->score_median;
+      out.baseline.score_mad = rest->score_mad;
+      out.baseline.scores_without_line = true;
+    }
+  }
   const double c_len = std::clamp(
       out.line_length_mm / (2.0 * std::max(1e-9, options_.min_line_length_mm)), 0.0, 1.0);
   const double c_tube = std::clamp((out.tubularity - 0.2) / 0.5, 0.0, 1.0);
   out.confidence = std::clamp(c_peak * c_len * c_tube, 0.0, 1.0);
   out.found = out.confidence >= options_.min_confidence &&
               out.line_length_mm >= options_.min_line_length_mm;
-  out.peak_z = z_score;
   return out;
 }
 

@@ -127,6 +127,10 @@ struct SceneBaseline {
   // Median and median absolute deviation of the best line scores of the hemisphere's
   // directions (coarse level).
   double score_median = 0.0, score_mad = 0.0;
+  // The statistics leave out the directions whose best line meets the detected catheter (its
+  // own echo seen from the side: radon_detector.cc RestOfScene); a z-score against them then
+  // counts only for a long bright run.
+  bool scores_without_line = false;
   // Unknown beams: the parallel beams a full search inferred from the catheter's
   // reverberation ribbon (RadonDetectorOptions::infer_beams_from_ribbon). The probe does not
   // turn between volumes, so tracking fits with them at once, without the symmetric fit and
@@ -188,12 +192,14 @@ class RadonDetector {
     int steps;  // the grid's directions per side, odd
   };
   // Refines one coarse line (direction and peak) and judges it: axis fit, tip, target, tube
-  // check, confidence.
+  // check, confidence. `rest`: the scene's line scores without those meeting this line (a
+  // full search), a second z-score for a long bright run.
   CatheterDetection EvaluateLine(const imaging::Volume& volume, const RadonLevel& coarse,
                                  const RadonLevel& fine_level, const Eigen::Vector3d& direction,
                                  const RadonPeak& coarse_peak, const FineSearch& fine,
                                  const RadonWindow* window, double background,
-                                 const SceneBaseline& scene) const;
+                                 const SceneBaseline& scene,
+                                 const SceneBaseline* rest = nullptr) const;
 
   RadonDetectorOptions options_;
   std::optional<CatheterDetection> previous_;

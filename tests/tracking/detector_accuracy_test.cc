@@ -176,6 +176,34 @@ TEST(DetectorAccuracy, IndependentClassesRunInTheHarness) {
                    .volume.has_image_to_probe());
 }
 
+// Issue 32's classes: a deep catheter at 56° to the beam is found, the catheter-free deep
+// volumes are not.
+TEST(DetectorAccuracy, DeepObliqueClassesRunInTheHarness) {
+  ECHOSERVO_RELEASE_SUITE_ONLY("the detector's paths run in IndependentVolumes");
+  const auto r = RunHarness({"deep_56", "deep_free"}, false, false, false, 2);
+  ASSERT_EQ(r.classes.size(), 2u);
+  const MethodStats* fast = r.classes[0].Method("fast");
+  ASSERT_TRUE(fast);
+  Print(*fast);
+  EXPECT_EQ(fast->detected, 2);
+  EXPECT_LT(fast->angle_deg.median, 1.0);
+  EXPECT_LT(fast->tip_mm.median, 0.5);
+  ASSERT_TRUE(r.classes[1].Method("fast"));
+  EXPECT_EQ(r.classes[1].Method("fast")->false_detections, 0);
+}
+
+// A compact bright reflector (a tissue cube of 3–6 mm) is as bright from every side as along
+// its best line: leaving its own projections out of the z-score's baseline raises its z as it
+// raises a catheter's (5.6 → 9.0 on this volume, where its cross-section is dark around: tube
+// 0.84), so that z counts only for a bright run of at least 12 mm (this one: 9.8 mm).
+TEST(DetectorAccuracy, CompactReflectorIsNotACatheterAgainstTheRestOfTheScene) {
+  const auto av = MakeAccuracyVolume(FindVolumeClass("free_clutter"), 9, 11, false, {});
+  const auto det = RadonDetector().Detect(av.volume);
+  std::printf("free_clutter #9 seed 11: found %d conf %.2f z %.1f tube %.2f length %.1f\n",
+              det.found, det.confidence, det.peak_z, det.tubularity, det.line_length_mm);
+  EXPECT_FALSE(det.found);
+}
+
 TEST(DetectorAccuracy, VolumesAreReproducibleAndSpineNeedsItsFile) {
   const auto& cls = FindVolumeClass("wide_poses");
   const auto a = MakeAccuracyVolume(cls, 1, 7, false, {});
