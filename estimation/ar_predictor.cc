@@ -1,6 +1,5 @@
 #include "estimation/ar_predictor.h"
 
-#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cassert>
 #include <cmath>
@@ -10,162 +9,97 @@
 namespace echoservo::estimation {
 namespace {
 
-constexpr std::size_t kRateIntervals = 8;  // intervals whose median sets the rate
-constexpr double kIrregularHigh = 1.6;     // an interval beyond this × nominal: reset history
-constexpr double kIrregularLow = 0.4;      // below this × nominal: reset history
-constexpr long kMaxFilled = 3;             // dropped samples filled by interpolation
-
-// Online, a candidate predicts once it has this many rows per parameter and this many
-// a-priori scores: the a-priori error itself guards against over-fitting (the offline
-// reference, with no such guard, asks for kArRowsPerParameter).
-constexpr double kOnlineRowsPerParameter = 3.0;
-constexpr std::size_t kMinScored = 10;
+constexpr std::size_t kRateIntervals = 8;   // intervals whose median sets the rate
+constexpr double kIrregularHigh = 1.6;      // an interval beyond this × nominal: reset history
+constexpr double kIrregularLow = 0.4;       // below this × nominal: reset history
+constexpr long kMaxFilled = 3;              // dropped samples filled by interpolation
+constexpr double kClipSigma = 3.0;          // a-priori errors clipped at this many robust σ
+constexpr double kMeanAbsToSigma = 1.2533;  // σ = √(π/2)·E|e| for Gaussian errors
 
 bool ArPositive(double v) { return std::isfinite(v) && v > 0.0; }
 
 }  // namespace
 
-struct ArPredictor::Solver {
-  Eigen::LLT<Matrix> llt;
-  Matrix a;
-};
-
-ArPredictor::ArPredictor(ArPredictorOptions options)
-    : o_(options), solver_(std::make_unique<Solver>()) {
-  const bool ok =
-      std::isfinite(o_.horizon_s) && o_.horizon_s >= 0.0 && ArPositive(o_.max_history_s) &&
-      ArPositive(o_.max_lag_rate_hz) && ArPositive(o_.memory_s) && ArPositive(o_.validation_s) &&
-      ArPositive(o_.refit_s) && ArPositive(o_.ridge) && std::isfinite(o_.margin_fraction) &&
-      o_.margin_fraction >= 0.0 && ArPositive(o_.range_window_s) && ArPositive(o_.max_weight_sum);
+ArPredictor::ArPredictor(ArPredictorOptions options) : o_(options) {
+  const bool ok = std::isfinite(o_.horizon_s) && o_.horizon_s >= 0.0 && ArPositive(o_.history_s) &&
+                  o_.min_order >= 2 && o_.max_order >= o_.min_order && o_.max_order < kMaxParams &&
+                  ArPositive(o_.memory_s) && ArPositive(o_.prior_var) &&
+                  std::isfinite(o_.margin_fraction) && o_.margin_fraction >= 0.0 &&
+                  ArPositive(o_.range_window_s) && std::isfinite(o_.warmup_factor) &&
+                  o_.warmup_factor >= 1.0 && ArPositive(o_.max_weight_sum);
   if (!ok) {
     throw std::invalid_argument(
-        "autoregressive predictor: horizon >= 0; history, lag rate, memory, validation, "
-        "refit interval, ridge, range window and weight bound > 0; margin >= 0");
+        "autoregressive predictor: horizon >= 0, history, memory, prior, range window and "
+        "weight bound > 0, 2 <= min_order <= max_order < 64, margin >= 0, warm-up >= 1");
   }
 }
-
-ArPredictor::~ArPredictor() = default;
 
 void ArPredictor::Configure() {
   const double rate = 1.0 / dt_s_;
-  stride_ = std::max(1, static_cast<int>(std::ceil(rate / o_.max_lag_rate_hz - 1e-9)));
-  const int by_history = 1 + static_cast<int>(std::floor(o_.max_history_s * rate / stride_ + 1e-9));
-  candidates_.clear();
-  for (int p : kArCandidateOrders)
-    if (p <= std::min(by_history, kMaxParams)) candidates_.push_back({p, Vector(), false, 0.0, 0});
-  width_ = candidates_.back().order;
-  h_steps_ = o_.horizon_s * rate;
-  h_ceil_ = std::max(1, static_cast<int>(std::ceil(h_steps_ - 1e-9)));
-  lambda_ = 1.0 - 1.0 / std::max(o_.memory_s * rate, 4.0 * width_);
-  alpha_ = std::min(1.0, 1.0 / (o_.validation_s * rate));
-  refit_every_ = std::max(1, static_cast<int>(std::lround(o_.refit_s * rate)));
-  keep_ = std::max<std::size_t>(static_cast<std::size_t>((width_ - 1) * stride_ + h_ceil_ + 1),
+  order_ =
+      std::clamp(static_cast<int>(std::lround(o_.history_s * rate)), o_.min_order, o_.max_order);
+  h_ = std::max(1, static_cast<int>(std::lround(o_.horizon_s * rate)));
+  // Memory at least a few times the parameters, so the solution is never under-determined.
+  const double memory = std::max(o_.memory_s * rate, 4.0 * order_);
+  lambda_ = 1.0 - 1.0 / memory;
+  keep_ = std::max<std::size_t>(static_cast<std::size_t>(order_ + h_ + 1),
                                 static_cast<std::size_t>(std::ceil(o_.range_window_s * rate)));
-  ResetLearning();
+  ResetWeights();
 }
 
-void ArPredictor::ResetLearning() {
-  g_.setZero(width_, width_);
-  b_.setZero(width_);
-  rows_ = 0.0;
-  learned_ = 0;
-  since_refit_ = 0;
-  largest_used_ = 0;
-  ++generation_;
-  for (Candidate& c : candidates_) {
-    c.w.setZero(c.order);
-    c.solved = false;
-    c.mse = 0.0;
-    c.scored = 0;
-  }
-}
-
-int ArPredictor::Best() const {
-  int best = -1;
-  for (std::size_t i = 0; i < candidates_.size(); ++i) {
-    const Candidate& c = candidates_[i];
-    if (!c.solved || c.scored < kMinScored || rows_ < kOnlineRowsPerParameter * c.order) continue;
-    if (best < 0 || c.mse < candidates_[static_cast<std::size_t>(best)].mse)
-      best = static_cast<int>(i);
-  }
-  return best;
-}
-
-int ArPredictor::order() const {
-  const int best = Best();
-  return best < 0 ? 0 : candidates_[static_cast<std::size_t>(best)].order;
-}
-
-double ArPredictor::recent_mse_mm2() const {
-  const int best = Best();
-  return best < 0 ? 0.0 : candidates_[static_cast<std::size_t>(best)].mse;
+void ArPredictor::ResetWeights() {
+  w_.setZero(order_);
+  p_ = o_.prior_var * Matrix::Identity(order_, order_);
+  trained_ = 0;
+  abs_err_ = 0.0;
 }
 
 bool ArPredictor::ready() const {
-  const int p = order();
-  return p > 0 && x_.size() > static_cast<std::size_t>((p - 1) * stride_);
+  return order_ > 0 && x_.size() >= static_cast<std::size_t>(order_) &&
+         static_cast<double>(trained_) >= o_.warmup_factor * order_;
 }
 
-void ArPredictor::Regressors(std::size_t j, int p, Vector& u) const {
-  assert(j >= static_cast<std::size_t>((p - 1) * stride_));
-  u.resize(p);
+void ArPredictor::Regressors(std::size_t j, Vector& u) const {
+  assert(j + 1 >= static_cast<std::size_t>(order_));
+  u.resize(order_);
   u(0) = 1.0;
-  for (int i = 1; i < p; ++i) u(i) = x_[j - static_cast<std::size_t>(i * stride_)] - x_[j];
+  for (int i = 1; i < order_; ++i) u(i) = x_[j - static_cast<std::size_t>(i)] - x_[j];
 }
 
-void ArPredictor::Learn() {
-  // The row the newest sample completes: regressors at j = n − ⌈h⌉, the target the samples
-  // interpolated at j + h.
+void ArPredictor::Train() {
+  // The newest complete pair: regressors at n − h, target x[n] − x[n − h].
   const std::size_t n = x_.size() - 1;
-  const std::size_t reach = static_cast<std::size_t>((width_ - 1) * stride_ + h_ceil_);
-  if (n < reach) return;
-  const std::size_t j = n - static_cast<std::size_t>(h_ceil_);
-  const double at = static_cast<double>(j) + h_steps_;
-  const auto below = std::min(static_cast<std::size_t>(std::floor(at)), n);
-  const std::size_t above = std::min(below + 1, n);
-  const double frac = at - static_cast<double>(below);
-  const double target = x_[below] + frac * (x_[above] - x_[below]);
+  const std::size_t h = static_cast<std::size_t>(h_);
+  if (x_.size() < static_cast<std::size_t>(order_) + h) return;
+  const std::size_t j = n - h;
   Vector u;
-  Regressors(j, width_, u);
-  // Every solved candidate's a-priori error on this row, before it learns it.
-  const double y = target - x_[j];
-  for (Candidate& c : candidates_) {
-    if (!c.solved) continue;
-    const double e = y - c.w.dot(u.head(c.order));
-    const double w = std::max(alpha_, 1.0 / static_cast<double>(c.scored + 1));
-    c.mse += w * (e * e - c.mse);
-    ++c.scored;
+  Regressors(j, u);
+  const double d = x_[n] - x_[j];
+  double e = d - w_.dot(u);
+  // Robust: clip the a-priori error (outliers, heavy tails) once the scale is known.
+  if (trained_ > static_cast<std::size_t>(order_)) {
+    const double clip = kClipSigma * kMeanAbsToSigma * abs_err_;
+    if (clip > 0.0) e = std::clamp(e, -clip, clip);
   }
-  g_ *= lambda_;
-  b_ *= lambda_;
-  g_.selfadjointView<Eigen::Lower>().rankUpdate(u);
-  b_ += u * y;
-  rows_ = lambda_ * rows_ + 1.0;
-  ++learned_;
-  if (++since_refit_ >= refit_every_) Refit();
-}
-
-void ArPredictor::Refit() {
-  since_refit_ = 0;
-
-  const double ridge = o_.ridge * std::max(g_.diagonal().mean(), 1e-12);
-  for (Candidate& c : candidates_) {
-    if (rows_ < 2.0 * c.order) continue;  // under-determined yet
-    Matrix& a = solver_->a;
-    a = g_.topLeftCorner(c.order, c.order).selfadjointView<Eigen::Lower>();
-    a.diagonal().array() += ridge;
-    solver_->llt.compute(a);
-    if (solver_->llt.info() != Eigen::Success) continue;
-    const Vector w = solver_->llt.solve(b_.head(c.order));
-    if (!w.allFinite() || w.tail(c.order - 1).lpNorm<1>() > o_.max_weight_sum) {
-      // Ill-conditioned at this order (too many lags for what the motion excites): this
-      // candidate sits out until a refit solves it well; the others go on.
-      c.solved = false;
-      ++resets_;
-      continue;
-    }
-    c.w = w;
-    c.solved = true;
+  const double gain_weight = trained_ == 0 ? 1.0 : 1.0 - lambda_;
+  abs_err_ +=
+      std::max(gain_weight, 1.0 / static_cast<double>(trained_ + 1)) * (std::abs(e) - abs_err_);
+  const Vector pu = p_ * u;
+  const double s = lambda_ + u.dot(pu);
+  const Vector k = pu / s;
+  w_ += k * e;
+  p_.noalias() -= k * pu.transpose();
+  p_ /= lambda_;
+  // Regularisation against wind-up (forgetting with little excitation inflates P): keep
+  // P below its prior, i.e. never less ridge than the prior's.
+  const double cap = o_.prior_var * order_;
+  const double trace = p_.trace();
+  if (trace > cap) p_ *= cap / trace;
+  if (trained_ % 64 == 0) p_ = 0.5 * (p_ + p_.transpose()).eval();
+  ++trained_;
+  if (!w_.allFinite() || w_.tail(order_ - 1).lpNorm<1>() > o_.max_weight_sum || !p_.allFinite()) {
+    ++resets_;
+    ResetWeights();
   }
 }
 
@@ -173,14 +107,9 @@ void ArPredictor::Refresh() {
   const double newest = x_.back();
   predicted_mm_ = newest;
   if (!ready()) return;
-  const Candidate& c = candidates_[static_cast<std::size_t>(Best())];
-  if (c.order > largest_used_) {
-    largest_used_ = c.order;
-    ++generation_;
-  }
   Vector u;
-  Regressors(x_.size() - 1, c.order, u);
-  const double y = newest + c.w.dot(u);
+  Regressors(x_.size() - 1, u);
+  const double y = newest + w_.dot(u);
   const std::size_t span =
       std::min(x_.size(), static_cast<std::size_t>(std::ceil(o_.range_window_s / dt_s_)));
   const auto [lo, hi] = std::minmax_element(x_.end() - static_cast<std::ptrdiff_t>(span), x_.end());
@@ -218,7 +147,7 @@ void ArPredictor::Update(double t_s, double z) {
         for (long i = 1; i < k; ++i) {
           x_.push_back(from + (z - from) * static_cast<double>(i) / static_cast<double>(k));
           while (x_.size() > keep_) x_.pop_front();
-          Learn();
+          Train();
         }
         ++filled_;
       } else {
@@ -237,15 +166,15 @@ void ArPredictor::Update(double t_s, double z) {
     return;
   }
   while (x_.size() > keep_) x_.pop_front();
-  Learn();
+  Train();
   Refresh();
 }
 
 double ArPredictor::Predict(double t_s) const {
   const double newest = x_.empty() ? 0.0 : x_.back();
   const double dt = t_s - t_;
-  if (!(dt > 0.0) || dt_s_ == 0.0 || o_.horizon_s <= 0.0) return newest;
-  const double frac = std::min(1.0, dt / o_.horizon_s);
+  if (!(dt > 0.0) || dt_s_ == 0.0) return newest;
+  const double frac = std::min(1.0, dt / (h_ * dt_s_));
   return newest + frac * (predicted_mm_ - newest);
 }
 

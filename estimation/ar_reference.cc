@@ -8,8 +8,6 @@
 #include <stdexcept>
 #include <string>
 
-#include "estimation/ar_predictor.h"
-
 namespace echoservo::estimation {
 namespace {
 

@@ -14,7 +14,7 @@
 // holds the newest measurement (counted in `held`).
 // Split: t_mid = the middle of the measurements' span; training rows have their target at
 // or before t_mid, scored instants are measurements at or after t_mid. Order: the
-// candidates kArCandidateOrders (estimation/ar_predictor.h) up to max_history_s of
+// candidates kArCandidateOrders (below) up to max_history_s of
 // lags and a tenth of the training rows (kArRowsPerParameter), each scored by 5-fold blocked
 // cross-validation (training rows within the order's reach of the held-out block left out); the
 // lowest summed squared validation error wins. Ridge kArRidge × the Gram's mean diagonal. Errors:
@@ -30,6 +30,14 @@
 #include "estimation/motion_trace.h"
 
 namespace echoservo::estimation {
+
+// The candidate orders (parameters, the offset included), up to the longest lag span allowed.
+inline constexpr int kArCandidateOrders[] = {1, 2, 3, 4, 6, 8, 11, 16, 22, 32, 45, 64, 90};
+// A candidate is used only with at least this many training rows per parameter.
+inline constexpr int kArRowsPerParameter = 10;
+// Ridge, relative to the Gram's mean diagonal (noise-free periodic motion over many lags is
+// ill-conditioned without it).
+inline constexpr double kArRidge = 1e-6;
 
 struct ArReferenceOptions {
   double latency_s = 0.1;

@@ -22,11 +22,9 @@ PredictorCompetition::PredictorCompetition(PredictorCompetitionOptions options)
     throw std::invalid_argument("predictor competition: the latency must be in [0, 2] s");
   }
   if (!(std::isfinite(o_.window_s) && o_.window_s > 0.0 && std::isfinite(o_.hysteresis) &&
-        o_.hysteresis >= 0.0 && o_.hysteresis < 1.0 && o_.min_scored >= 1 &&
-        std::isfinite(o_.min_scored_s) && o_.min_scored_s >= 0.0)) {
+        o_.hysteresis >= 0.0 && o_.hysteresis < 1.0 && o_.min_scored >= 1)) {
     throw std::invalid_argument(
-        "predictor competition: window_s must be > 0, hysteresis in [0, 1), min_scored >= 1, "
-        "min_scored_s >= 0");
+        "predictor competition: window_s must be > 0, hysteresis in [0, 1), min_scored >= 1");
   }
   o_.ar.horizon_s = o_.latency_s;
   auto ekf = std::make_unique<HeartbeatEkf>(o_.ekf);
@@ -58,16 +56,6 @@ void PredictorCompetition::Score(double t_s, double z) {
     pending_.pop_front();
     if (gap) continue;  // no reference inside a gap
     const double ref = z_ + (z - z_) * (p.target_s - t_) / dt;
-    // The EKF's and the AR predictor's joint error moments (their optimal blend).
-    if (!std::isnan(p.predicted_mm[kEkf]) && !std::isnan(p.predicted_mm[kAr])) {
-      const double ee = p.predicted_mm[kEkf] - ref;
-      const double ea = p.predicted_mm[kAr] - ref;
-      const double w = std::max(alpha, 1.0 / static_cast<double>(pair_scored_ + 1));
-      pair_[0] += w * (ee * ee - pair_[0]);
-      pair_[1] += w * (ea * ea - pair_[1]);
-      pair_[2] += w * (ee * ea - pair_[2]);
-      ++pair_scored_;
-    }
     for (int i = 0; i < kCount; ++i) {
       if (std::isnan(p.predicted_mm[i])) continue;  // made while it was not ready
       CompetitorStatus& s = status_[static_cast<std::size_t>(i)];
@@ -81,40 +69,17 @@ void PredictorCompetition::Score(double t_s, double z) {
   }
 }
 
-void PredictorCompetition::Restart(int i) {
-  const auto u = static_cast<std::size_t>(i);
-  status_[u].scored = 0;
-  status_[u].recent_rms_mm = 0.0;
-  mse_[u] = 0.0;
-  for (Pending& p : pending_) p.predicted_mm[i] = std::numeric_limits<double>::quiet_NaN();
-  if (i == kEkf || i == kAr) pair_scored_ = 0;
-}
-
-std::size_t PredictorCompetition::MinScored() const {
-  const double by_time = typical_dt_s_ > 0.0 ? o_.min_scored_s / typical_dt_s_ : 0.0;
-  return std::max(static_cast<std::size_t>(o_.min_scored), static_cast<std::size_t>(by_time));
-}
-
-void PredictorCompetition::Blend() {
-  // The convex weight on the EKF minimising the recent mean squared error of
-  // w·EKF + (1 − w)·AR (errors correlated: Bates & Granger with the covariance), used when
-  // one of the two is chosen and both have a record of the pair.
-  ekf_weight_ = chosen_ == kEkf ? 1.0 : 0.0;
-  if ((chosen_ != kEkf && chosen_ != kAr) || pair_scored_ < MinScored()) return;
-  const double denom = pair_[0] + pair_[1] - 2.0 * pair_[2];
-  if (!(denom > kMseFloor)) return;
-  ekf_weight_ = std::clamp((pair_[1] - pair_[2]) / denom, 0.0, 1.0);
-}
-
 void PredictorCompetition::Choose() {
   int best = -1;
   for (int i = 0; i < kCount; ++i) {
-    if (status_[static_cast<std::size_t>(i)].scored < MinScored()) continue;
+    if (status_[static_cast<std::size_t>(i)].scored < static_cast<std::size_t>(o_.min_scored))
+      continue;
     if (best < 0 || mse_[static_cast<std::size_t>(i)] < mse_[static_cast<std::size_t>(best)])
       best = i;
   }
   if (best < 0 || best == chosen_) return;
-  const bool chosen_scored = status_[static_cast<std::size_t>(chosen_)].scored >= MinScored();
+  const bool chosen_scored =
+      status_[static_cast<std::size_t>(chosen_)].scored >= static_cast<std::size_t>(o_.min_scored);
   const double keep = (1.0 - o_.hysteresis) * (1.0 - o_.hysteresis);
   if (!chosen_scored ||
       mse_[static_cast<std::size_t>(best)] < keep * mse_[static_cast<std::size_t>(chosen_)]) {
@@ -127,7 +92,9 @@ void PredictorCompetition::Weigh() {
   double sum = 0.0;
   for (int i = 0; i < kCount; ++i) {
     const auto u = static_cast<std::size_t>(i);
-    weights_[u] = status_[u].scored >= MinScored() ? 1.0 / std::max(mse_[u], kMseFloor) : 0.0;
+    weights_[u] = status_[u].scored >= static_cast<std::size_t>(o_.min_scored)
+                      ? 1.0 / std::max(mse_[u], kMseFloor)
+                      : 0.0;
     sum += weights_[u];
   }
   if (sum == 0.0) {
@@ -155,15 +122,10 @@ void PredictorCompetition::Update(double t_s, double z) {
   // the zero-order hold, not the heartbeat model.
   if (ekf_->initialisations() != ekf_initialisations_) {
     ekf_initialisations_ = ekf_->initialisations();
-    Restart(kEkf);
-  }
-  // When a more flexible AR order takes over, its record so far is that of the simpler
-  // orders it outgrew: it takes the new order's own a-priori error (an out-of-sample score
-  // at the same horizon) instead.
-  if (ar_->generation() != ar_generation_) {
-    ar_generation_ = ar_->generation();
-    if (ar_->ready()) mse_[kAr] = ar_->recent_mse_mm2();
-    pair_scored_ = 0;  // the pair's moments restart with the new model
+    status_[kEkf].scored = 0;
+    status_[kEkf].recent_rms_mm = 0.0;
+    mse_[kEkf] = 0.0;
+    for (Pending& p : pending_) p.predicted_mm[kEkf] = std::numeric_limits<double>::quiet_NaN();
   }
   any_ = true;
   t_ = t_s;
@@ -172,7 +134,6 @@ void PredictorCompetition::Update(double t_s, double z) {
     Weigh();
   } else {
     Choose();
-    Blend();
   }
   ++status_[static_cast<std::size_t>(chosen_)].chosen;
   Pending p;
@@ -180,23 +141,14 @@ void PredictorCompetition::Update(double t_s, double z) {
   for (int i = 0; i < kCount; ++i)
     p.predicted_mm[i] = predictors_[static_cast<std::size_t>(i)]->Predict(p.target_s);
   // Not scored while not ready (the EKF buffering, the AR predictor untrained: both hold).
-  // Once the AR predictor has predicted, its holds (after a gap broke its history) are
-  // scored too: they are what it ships then.
-  ar_trained_ = ar_trained_ || ar_->ready();
   if (!ekf_->initialised()) p.predicted_mm[kEkf] = std::numeric_limits<double>::quiet_NaN();
-  if (!ar_trained_) p.predicted_mm[kAr] = std::numeric_limits<double>::quiet_NaN();
+  if (!ar_->ready()) p.predicted_mm[kAr] = std::numeric_limits<double>::quiet_NaN();
   pending_.push_back(p);
 }
 
 double PredictorCompetition::Predict(double t_s) const {
-  if (o_.combination == Combination::kPickBest) {
-    if (chosen_ != kEkf && chosen_ != kAr)
-      return predictors_[static_cast<std::size_t>(chosen_)]->Predict(t_s);
-    const double w = ekf_weight_;
-    if (w >= 1.0) return ekf_->Predict(t_s);
-    if (w <= 0.0) return ar_->Predict(t_s);
-    return w * ekf_->Predict(t_s) + (1.0 - w) * ar_->Predict(t_s);
-  }
+  if (o_.combination == Combination::kPickBest)
+    return predictors_[static_cast<std::size_t>(chosen_)]->Predict(t_s);
   double y = 0.0;
   for (int i = 0; i < kCount; ++i) {
     const auto u = static_cast<std::size_t>(i);
@@ -205,53 +157,33 @@ double PredictorCompetition::Predict(double t_s) const {
   return y;
 }
 
-// A line through a prediction over [t, t + latency] (least squares on kMotionSamples
-// points): its value at t and its slope.
-template <typename F>
-void LineThrough(const F& predict, double t, double latency_s, double& offset, double& drift) {
-  if (latency_s <= 0.0) {
-    offset = predict(t);
-    drift = 0.0;
-    return;
-  }
-  double st = 0.0, sy = 0.0, stt = 0.0, sty = 0.0;
-  for (int k = 0; k < kMotionSamples; ++k) {
-    const double tau = latency_s * k / (kMotionSamples - 1);
-    const double y = predict(t + tau);
-    st += tau;
-    sy += y;
-    stt += tau * tau;
-    sty += tau * y;
-  }
-  const double n = kMotionSamples;
-  drift = (n * sty - st * sy) / (n * stt - st * st);
-  offset = (sy - drift * st) / n;
-}
-
 FourierMotion PredictorCompetition::Motion() const {
   FourierMotion m;
   if (!any_) {
     m.valid_until_s = 0.0;
     return m;
   }
-  const bool pair = o_.combination == Combination::kPickBest && (chosen_ == kEkf || chosen_ == kAr);
-  if (pair && ekf_weight_ > 0.0 && ekf_->initialised()) {
-    // The EKF's model scaled by its weight, plus the AR predictor's line (linear over the
-    // latency, so the sum reproduces the blended prediction).
-    m = ekf_->Motion();
-    if (ekf_weight_ >= 1.0) return m;
-    const double w = ekf_weight_;
-    double offset = 0.0, drift = 0.0;
-    LineThrough([this](double t) { return ar_->Predict(t); }, t_, o_.latency_s, offset, drift);
-    for (double& a : m.cos_mm) a *= w;
-    for (double& b : m.sin_mm) b *= w;
-    m.offset_mm = w * m.offset_mm + (1.0 - w) * (offset + drift * (m.t0_s - t_));
-    m.drift_mm_s = w * m.drift_mm_s + (1.0 - w) * drift;
-    m.valid_until_s = std::max(m.valid_until_s, t_ + o_.ekf.horizon_s);
-    return m;
-  }
+  if (o_.combination == Combination::kPickBest && chosen_ == kEkf && ekf_->initialised())
+    return ekf_->Motion();
+  // A line through the forward prediction over [newest, newest + latency] (least squares
+  // on kMotionSamples points): offset at the newest measurement, drift its slope.
   m.t0_s = t_;
-  LineThrough([this](double t) { return Predict(t); }, t_, o_.latency_s, m.offset_mm, m.drift_mm_s);
+  if (o_.latency_s > 0.0) {
+    double st = 0.0, sy = 0.0, stt = 0.0, sty = 0.0;
+    for (int k = 0; k < kMotionSamples; ++k) {
+      const double tau = o_.latency_s * k / (kMotionSamples - 1);
+      const double y = Predict(t_ + tau);
+      st += tau;
+      sy += y;
+      stt += tau * tau;
+      sty += tau * y;
+    }
+    const double n = kMotionSamples;
+    m.drift_mm_s = (n * sty - st * sy) / (n * stt - st * st);
+    m.offset_mm = (sy - m.drift_mm_s * st) / n;
+  } else {
+    m.offset_mm = Predict(t_);
+  }
   m.valid_until_s = t_ + o_.ekf.horizon_s;
   return m;
 }

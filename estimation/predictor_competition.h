@@ -8,17 +8,11 @@
 // after t + latency_s arrives, with the measurements linearly interpolated there (never
 // across a gap); squared errors are averaged exponentially over window_s. Choice: the
 // competitor with the lowest recent error, switched to only when it beats the current
-// choice by the hysteresis fraction (no flapping). When the EKF or the AR predictor is
-// chosen, the output is their convex blend w·EKF + (1 − w)·AR with the weight minimising
-// the pair's recent mean squared error (their errors' variances and covariance over the
-// same window; Bates & Granger), which picking alone loses to on real traces when the two
-// trade the lead (docs/predictor.md). A (re)initialised EKF restarts its record; when a
-// more flexible AR order takes over, the AR's record becomes that order's own a-priori
-// error, and the pair's moments restart. kWeighted instead mixes all by inverse mean
-// squared error (measured worse). Out: Predict(t) and Motion(), a FourierMotion for the
-// servo, valid until newest + ekf.horizon_s: the EKF's own model when it alone drives the
-// output, else 0 harmonics with the offset and drift (linear term) of the output's
-// forward prediction over [newest, newest + latency_s].
+// choice by the hysteresis fraction (no flapping); kWeighted instead mixes all by inverse
+// mean squared error (measured worse, docs/predictor.md). Out: Predict(t) and Motion(), a
+// FourierMotion for the servo, valid until newest + ekf.horizon_s: the EKF's own model
+// when it is chosen, else 0 harmonics with the offset and drift (linear term) of the
+// chosen predictor's forward prediction over [newest, newest + latency_s].
 // Errors: the constructor throws std::invalid_argument for bad options; Update throws it
 // for non-finite input or a time not after the previous one (nothing is changed then).
 // Details: docs/predictor.md#what-ships-the-online-competition-estimationpredictor_competitionh
@@ -40,11 +34,10 @@ namespace echoservo::estimation {
 enum class Combination { kPickBest, kWeighted };
 
 struct PredictorCompetitionOptions {
-  double latency_s = 0.1;     // the horizon the competitors are scored at
-  double window_s = 8.0;      // memory of the recent error (exponential, s)
-  double hysteresis = 0.1;    // a challenger must be this fraction better than the choice
-  int min_scored = 10;        // scored predictions before a competitor may be chosen …
-  double min_scored_s = 0.4;  // … spanning at least this (0.4 s: 10 at 25 Hz, 80 at 200 Hz)
+  double latency_s = 0.1;   // the horizon the competitors are scored at
+  double window_s = 8.0;    // memory of the recent error (exponential, s)
+  double hysteresis = 0.1;  // a challenger must be this fraction better than the choice
+  int min_scored = 20;      // scored predictions before a competitor may be chosen
   Combination combination = Combination::kPickBest;
   HeartbeatEkfOptions ekf;
   ArPredictorOptions ar;  // its horizon_s is set to latency_s
@@ -81,8 +74,6 @@ class PredictorCompetition final : public MotionPredictor {
   }
   const HeartbeatEkf& ekf() const { return *ekf_; }
   const ArPredictor& ar() const { return *ar_; }
-  // The EKF's weight in the output while the EKF or the AR predictor is chosen.
-  double ekf_weight() const { return ekf_weight_; }
   std::size_t switches() const { return switches_; }
   const PredictorCompetitionOptions& options() const { return o_; }
 
@@ -90,9 +81,6 @@ class PredictorCompetition final : public MotionPredictor {
   void Score(double t_s, double z);  // settle the predictions that are now due
   void Choose();
   void Weigh();
-  void Blend();  // ekf_weight_ from the pair's recent error moments
-  std::size_t MinScored() const;
-  void Restart(int i);  // competitor i's record starts afresh
 
   PredictorCompetitionOptions o_;
   std::vector<std::unique_ptr<MotionPredictor>> predictors_;
@@ -112,13 +100,6 @@ class PredictorCompetition final : public MotionPredictor {
   double typical_dt_s_ = 0.0;  // running typical sampling interval (gap detection)
   int chosen_ = kZoh;
   std::size_t ekf_initialisations_ = 0;
-  std::size_t ar_generation_ = 0;
-  bool ar_trained_ = false;  // the AR predictor has predicted (been ready) once
-  // The EKF's and the AR predictor's recent error moments (e², a², e·a) and the EKF's
-  // weight in the output when either is chosen (1: the EKF alone, 0: the AR alone).
-  double pair_[3] = {0.0, 0.0, 0.0};
-  std::size_t pair_scored_ = 0;
-  double ekf_weight_ = 0.0;
   std::size_t switches_ = 0;
 };
 
