@@ -9,10 +9,6 @@
 namespace echoservo::estimation {
 namespace {
 
-constexpr std::size_t kRateIntervals = 8;   // intervals whose median sets the rate
-constexpr double kIrregularHigh = 1.6;      // an interval beyond this × nominal: reset history
-constexpr double kIrregularLow = 0.4;       // below this × nominal: reset history
-constexpr long kMaxFilled = 3;              // dropped samples filled by interpolation
 constexpr double kClipSigma = 3.0;          // a-priori errors clipped at this many robust σ
 constexpr double kMeanAbsToSigma = 1.2533;  // σ = √(π/2)·E|e| for Gaussian errors
 
@@ -118,53 +114,31 @@ void ArPredictor::Refresh() {
 }
 
 void ArPredictor::Update(double t_s, double z) {
-  if (!std::isfinite(t_s) || !std::isfinite(z)) {
-    throw std::invalid_argument(
-        "autoregressive predictor: a measurement or its time is NaN or "
-        "infinite");
-  }
-  if (any_ && !(t_s > t_)) {
-    throw std::invalid_argument(
-        "autoregressive predictor: measurement times must be strictly increasing");
-  }
-  if (any_) {
-    const double dt = t_s - t_;
-    if (dt_s_ == 0.0) {
-      intervals_.push_back(dt);
-      if (intervals_.size() >= kRateIntervals) {
-        std::vector<double> v(intervals_.begin(), intervals_.end());
-        std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-        dt_s_ = v[v.size() / 2];
-        Configure();
-      }
-    } else if (dt > kIrregularHigh * dt_s_ || dt < kIrregularLow * dt_s_) {
-      const double steps = dt / dt_s_;
-      const long k = std::lround(steps);
-      if (k >= 2 && k <= kMaxFilled + 1 && std::abs(steps - static_cast<double>(k)) < 0.3 &&
-          !x_.empty()) {
-        // One to kMaxFilled dropped samples on the grid: fill them by linear interpolation.
-        const double from = x_.back();
-        for (long i = 1; i < k; ++i) {
-          x_.push_back(from + (z - from) * static_cast<double>(i) / static_cast<double>(k));
-          while (x_.size() > keep_) x_.pop_front();
-          Train();
-        }
+  switch (grid_.Accept(t_s, z)) {
+    case SampleGrid::Step::kLearning:
+      x_.push_back(z);
+      while (x_.size() > SampleGrid::kRateIntervals + 1) x_.pop_front();
+      predicted_mm_ = z;
+      return;
+    case SampleGrid::Step::kLearned:
+      dt_s_ = grid_.dt_s();
+      Configure();
+      break;
+    case SampleGrid::Step::kNext:
+      break;
+    case SampleGrid::Step::kDropped:
+      if (!x_.empty()) {
+        FillDropped(x_, z, grid_.dropped(), keep_, [this] { Train(); });
         ++filled_;
-      } else {
-        // A gap or an irregular interval: the lags no longer mean the same delays.
-        x_.clear();
-        ++history_resets_;
+        break;
       }
-    }
+      [[fallthrough]];
+    case SampleGrid::Step::kBroken:
+      x_.clear();
+      ++history_resets_;
+      break;
   }
-  any_ = true;
-  t_ = t_s;
   x_.push_back(z);
-  if (dt_s_ == 0.0) {
-    while (x_.size() > kRateIntervals + 1) x_.pop_front();
-    predicted_mm_ = z;
-    return;
-  }
   while (x_.size() > keep_) x_.pop_front();
   Train();
   Refresh();
@@ -172,10 +146,8 @@ void ArPredictor::Update(double t_s, double z) {
 
 double ArPredictor::Predict(double t_s) const {
   const double newest = x_.empty() ? 0.0 : x_.back();
-  const double dt = t_s - t_;
-  if (!(dt > 0.0) || dt_s_ == 0.0) return newest;
-  const double frac = std::min(1.0, dt / (h_ * dt_s_));
-  return newest + frac * (predicted_mm_ - newest);
+  return TowardsHorizon(newest, predicted_mm_, grid_.last_t_s(), dt_s_ > 0.0 ? h_ * dt_s_ : 0.0,
+                        t_s);
 }
 
 }  // namespace echoservo::estimation

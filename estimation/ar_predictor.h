@@ -23,6 +23,7 @@
 #include <string>
 
 #include "estimation/motion_predictor.h"
+#include "estimation/sample_grid.h"
 
 namespace echoservo::estimation {
 
@@ -71,15 +72,13 @@ class ArPredictor final : public MotionPredictor {
   void Refresh();  // the cached prediction and the clamp range
 
   ArPredictorOptions o_;
-  std::deque<double> intervals_;  // the first intervals, to learn the rate
-  double dt_s_ = 0.0;             // nominal interval; 0 until learned
+  SampleGrid grid_{"autoregressive predictor"};
+  double dt_s_ = 0.0;  // nominal interval; 0 until learned
   int order_ = 0;
   int h_ = 1;
   double lambda_ = 1.0;
   std::deque<double> x_;  // newest samples (at most max(order + h, range window))
   std::size_t keep_ = 0;
-  double t_ = 0.0;
-  bool any_ = false;
   Vector w_;
   Matrix p_;
   double abs_err_ = 0.0;  // exponentially weighted mean |a-priori error| (mm)

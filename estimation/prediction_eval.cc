@@ -189,6 +189,9 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
   run.reacquisitions = ekf.reacquisitions();
   run.ar_order = competition.ar().order();
   run.ar_horizon_steps = competition.ar().horizon_steps();
+  run.ls_ar_order = competition.ls_ar().order();
+  run.ls_ar_stride = competition.ls_ar().stride();
+  run.blend_ekf_weight = competition.blend_ekf_weight();
   run.harmonics = ekf.harmonics();
   run.respiration = ekf.respiration();
   run.offset_rate_q_mm_s = ekf.offset_rate_q_mm_s();

@@ -78,6 +78,9 @@ struct PredictionRun {
   std::size_t reacquisitions = 0;  // the EKF's rate re-acquisitions
   int ar_order = 0;
   int ar_horizon_steps = 0;
+  int ls_ar_order = 0;            // the least-squares AR's order at the end (0: none yet)
+  int ls_ar_stride = 1;           // its samples between lags
+  double blend_ekf_weight = 0.0;  // the blend's weight on the EKF at the end (NaN: none yet)
   // The EKF at the end of the trace.
   int harmonics = 0;
   bool respiration = false;         // the offset-rate state carried

@@ -2,6 +2,7 @@
 // EKF, autoregressive predictor, baselines; estimation/predictor_competition.h) and each
 // competitor alone, on a motion trace.
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <iostream>
@@ -197,6 +198,10 @@ void PrintPrediction(const PredictFlags& f, const estimation::MotionTrace& trace
           {"rejected", r.rejected},
           {"initialisations", r.initialisations}}},
         {"autoregressive", {{"order", r.ar_order}, {"horizon_steps", r.ar_horizon_steps}}},
+        {"autoregressive_ls", {{"order", r.ls_ar_order}, {"stride", r.ls_ar_stride}}},
+        {"ekf_ar_blend",
+         {{"ekf_weight", std::isfinite(r.blend_ekf_weight) ? nlohmann::json(r.blend_ekf_weight)
+                                                           : nlohmann::json(nullptr)}}},
         {"baselines", baselines},
         {"zoh_over_ekf", zoh / r.shipped.rms_mm},
         {"constant_velocity_kf_accel_psd_mm2_s3", r.cv_accel_psd_mm2_s3}};

@@ -39,12 +39,16 @@ TEST(PredictCli, PhantomJsonHasTheEkfAndEveryBaseline) {
   // fractions of scored measurements each drove the output (they sum to 1).
   EXPECT_DOUBLE_EQ(j["ekf_rms_mm"].get<double>(), j["shipped"]["rms_mm"].get<double>());
   double chosen = 0.0;
-  for (const char* c : {"heartbeat_ekf", "autoregressive", "zero_order_hold",
-                        "linear_extrapolation", "constant_velocity_kf"}) {
+  for (const char* c : {"heartbeat_ekf", "autoregressive", "autoregressive_ls", "ekf_ar_blend",
+                        "zero_order_hold", "linear_extrapolation", "constant_velocity_kf"}) {
     EXPECT_GT(j["competitors"][c]["rms_mm"].get<double>(), 0.0) << c;
     chosen += j["chosen"][c].get<double>();
   }
   EXPECT_NEAR(chosen, 1.0, 1e-9);
+  EXPECT_DOUBLE_EQ(j["chosen"]["autoregressive_ls"].get<double>(), 0.0);  // through the blend
+  EXPECT_GE(j["autoregressive_ls"]["order"].get<int>(), 1);
+  const double w = j["ekf_ar_blend"]["ekf_weight"].get<double>();
+  EXPECT_TRUE(w >= 0.0 && w <= 1.0) << w;
   EXPECT_DOUBLE_EQ(j["competitors"]["zero_order_hold"]["rms_mm"].get<double>(), zoh);
   // The phantom beats at 71.5 bpm (assumed 20 Hz sampling): inside the band.
   EXPECT_NEAR(j["ekf"]["heart_rate_bpm"].get<double>(), 71.5, 5.0);
