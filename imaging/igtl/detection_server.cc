@@ -20,9 +20,11 @@
 
 namespace echoservo::imaging::openigtlink {
 namespace detection_server_internal {
-namespace {
 
+// Outside the anonymous namespace: DetectionServer::Message (external linkage) holds one.
 enum class Kind { kImage, kTransform, kPoints, kStatus };
+
+namespace {
 
 double SteadyMs() {
   return std::chrono::duration<double, std::milli>(
