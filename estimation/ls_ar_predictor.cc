@@ -10,7 +10,6 @@
 namespace echoservo::estimation {
 namespace {
 
-
 // Online, a candidate predicts once it has as many rows per parameter as the offline
 // reference asks for and this many a-priori scores: with 3 rows per parameter (its a-priori
 // error as the only guard) its first seconds were poorer than the recursive AR's, and it
@@ -29,14 +28,16 @@ struct LsArPredictor::Solver {
 
 LsArPredictor::LsArPredictor(LsArPredictorOptions options)
     : o_(options), solver_(std::make_unique<Solver>()) {
-  const bool ok =
-      std::isfinite(o_.horizon_s) && o_.horizon_s >= 0.0 && LsArPositive(o_.max_history_s) &&
-      LsArPositive(o_.max_lag_rate_hz) && LsArPositive(o_.memory_s) && LsArPositive(o_.validation_s) &&
-      LsArPositive(o_.refit_s) && LsArPositive(o_.ridge) && std::isfinite(o_.margin_fraction) &&
-      o_.margin_fraction >= 0.0 && LsArPositive(o_.range_window_s) && LsArPositive(o_.max_weight_sum);
+  const bool ok = std::isfinite(o_.horizon_s) && o_.horizon_s >= 0.0 &&
+                  LsArPositive(o_.max_history_s) && LsArPositive(o_.max_lag_rate_hz) &&
+                  LsArPositive(o_.memory_s) && LsArPositive(o_.validation_s) &&
+                  LsArPositive(o_.refit_s) && LsArPositive(o_.ridge) &&
+                  std::isfinite(o_.margin_fraction) && o_.margin_fraction >= 0.0 &&
+                  LsArPositive(o_.range_window_s) && LsArPositive(o_.max_weight_sum);
   if (!ok) {
     throw std::invalid_argument(
-        "least-squares autoregressive predictor: horizon >= 0; history, lag rate, memory, validation, "
+        "least-squares autoregressive predictor: horizon >= 0; history, lag rate, memory, "
+        "validation, "
         "refit interval, ridge, range window and weight bound > 0; margin >= 0");
   }
 }
@@ -218,7 +219,8 @@ void LsArPredictor::Update(double t_s, double z) {
 
 double LsArPredictor::Predict(double t_s) const {
   const double newest = x_.empty() ? 0.0 : x_.back();
-  return TowardsHorizon(newest, predicted_mm_, grid_.last_t_s(), dt_s_ > 0.0 ? o_.horizon_s : 0.0, t_s);
+  return TowardsHorizon(newest, predicted_mm_, grid_.last_t_s(), dt_s_ > 0.0 ? o_.horizon_s : 0.0,
+                        t_s);
 }
 
 }  // namespace echoservo::estimation

@@ -111,7 +111,7 @@ class LsArPredictor final : public MotionPredictor {
 
   LsArPredictorOptions o_;
   SampleGrid grid_{"least-squares autoregressive predictor"};
-  double dt_s_ = 0.0;             // nominal interval; 0 until learned
+  double dt_s_ = 0.0;  // nominal interval; 0 until learned
   int stride_ = 1;
   int width_ = 0;       // parameters of the largest candidate
   double h_steps_ = 1;  // horizon in samples (fractional)

@@ -57,7 +57,8 @@ void FillDropped(std::deque<double>& history, double z, long missing, std::size_
                  Learn&& learn) {
   const double from = history.back();
   for (long i = 1; i <= missing; ++i) {
-    history.push_back(from + (z - from) * static_cast<double>(i) / static_cast<double>(missing + 1));
+    history.push_back(from +
+                      (z - from) * static_cast<double>(i) / static_cast<double>(missing + 1));
     while (history.size() > keep) history.pop_front();
     learn();
   }

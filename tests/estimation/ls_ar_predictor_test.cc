@@ -113,7 +113,8 @@ TEST(LsArPredictor, NeverLeavesTheRecentRange) {
 TEST(LsArPredictor, RejectsBadInput) {
   LsArPredictorOptions o;
   o.max_history_s = 0.0;
-  ExpectContains(InvalidArgumentMessage([&] { LsArPredictor{o}; }), "least-squares autoregressive predictor");
+  ExpectContains(InvalidArgumentMessage([&] { LsArPredictor{o}; }),
+                 "least-squares autoregressive predictor");
   LsArPredictor ar;
   ar.Update(1.0, 0.0);
   ExpectContains(InvalidArgumentMessage([&] { ar.Update(1.0, 1.0); }), "strictly increasing");

@@ -28,10 +28,10 @@ TEST(SampleGrid, LearnsTheMedianIntervalThenClassifies) {
   EXPECT_EQ(g.dropped(), 2);
   EXPECT_EQ(g.Accept(0.74, 0.0), SampleGrid::Step::kDropped);  // 4 intervals: 3 dropped
   EXPECT_EQ(g.dropped(), 3);
-  EXPECT_EQ(g.Accept(0.94, 0.0), SampleGrid::Step::kBroken);  // 5 intervals: too many to fill
+  EXPECT_EQ(g.Accept(0.94, 0.0), SampleGrid::Step::kBroken);   // 5 intervals: too many to fill
   EXPECT_EQ(g.Accept(1.007, 0.0), SampleGrid::Step::kBroken);  // 1.7 intervals: off the grid
-  EXPECT_EQ(g.Accept(1.5, 0.0), SampleGrid::Step::kBroken);  // a gap
-  EXPECT_EQ(g.Accept(1.51, 0.0), SampleGrid::Step::kBroken);  // a quarter interval
+  EXPECT_EQ(g.Accept(1.5, 0.0), SampleGrid::Step::kBroken);    // a gap
+  EXPECT_EQ(g.Accept(1.51, 0.0), SampleGrid::Step::kBroken);   // a quarter interval
   EXPECT_DOUBLE_EQ(g.last_t_s(), 1.51);
   EXPECT_NEAR(g.dt_s(), 0.04, 0.0015);  // the nominal interval is not relearned
 }
