@@ -1,14 +1,17 @@
 #include "tracking/echo_axis_fit.h"
 
 #include <tbb/blocked_range.h>
+#include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -97,13 +100,16 @@ class FirstEchoTest {
   Eigen::Matrix3d to_index_;
 };
 
-// The voxels above `bg` within `radius` of `line`, positions relative to `origin`, in scan
-// order (k, j, i). The squared distance to the line is a quadratic in the voxel index: per
-// slice, the rows that can come within `radius` are those where its minimum over i is small
-// enough; per row, the i range solves it. Slices in parallel (TBB), concatenated in order:
-// the result does not depend on the thread schedule.
-std::vector<Candidate> GatherCandidates(const imaging::Volume& v, const Line3& line, double radius,
-                                        double bg, const Eigen::Vector3d& origin) {
+// Calls visit(k, i, j, x, p) for each voxel (i, j, k) of slice k, value x above `bg`, within
+// `radius` of `line` and at most `max_along` along `along` (its position p relative to
+// `origin`), in scan order (j, i) within the slice. The squared distance to the line is a
+// quadratic in the voxel index: per slice, the rows that can come within `radius` are those
+// where its minimum over i is small enough; per row, the i range solves it. Slices in
+// parallel (TBB): a call writes only its own slice's results.
+template <typename Visit>
+void ForEachCylinderVoxel(const imaging::Volume& v, const Line3& line, double radius, double bg,
+                          const Eigen::Vector3d& origin, const Eigen::Vector3d& along,
+                          double max_along, Visit visit) {
   const Eigen::Vector3i dims = v.dims();
   const Eigen::Vector3d e = line.direction;
   auto perp = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return x - x.dot(e) * e; };
@@ -113,11 +119,10 @@ std::vector<Candidate> GatherCandidates(const imaging::Volume& v, const Line3& l
   const Eigen::Vector3d dz = v.IndexToPhysical(Eigen::Vector3d::UnitZ()) - o;
   const Eigen::Vector3d a = perp(dx), b = perp(dy);
   const double aa = a.squaredNorm(), ab = a.dot(b), bb = b.squaredNorm(), r2 = radius * radius;
+  const bool bounded = std::isfinite(max_along);
   const std::uint8_t* vox = v.voxels().data();
   const std::ptrdiff_t sy = dims.x(), sz = static_cast<std::ptrdiff_t>(dims.x()) * dims.y();
-  std::vector<std::vector<Candidate>> slices(static_cast<std::size_t>(dims.z()));
   tbb::parallel_for(0, dims.z(), [&](int k) {
-    std::vector<Candidate>& out = slices[static_cast<std::size_t>(k)];
     // Squared distance of voxel (i, j, k): |c + i a + j b|².
     const Eigen::Vector3d c = perp(o + k * dz - line.point);
     const double ac = a.dot(c), bc = b.dot(c), cc = c.squaredNorm();
@@ -136,16 +141,62 @@ std::vector<Candidate> GatherCandidates(const imaging::Volume& v, const Line3& l
       for (int i = i0; i <= i1; ++i) {
         const double x = row[i];
         if (x <= bg || ccj + i * (2 * acj + i * aa) > r2) continue;
-        out.push_back({row0 + i * dx, (x - bg) * (x - bg), i, j, k, row[i]});
+        const Eigen::Vector3d p = row0 + i * dx;
+        if (bounded && p.dot(along) > max_along) continue;
+        visit(k, i, j, row[i], p);
       }
     }
   });
+}
+
+// The voxels above `bg` within `radius` of `line` and at most `max_along` along `along`
+// (ForEachCylinderVoxel), positions relative to `origin`, weight (value − bg)², in scan order
+// (k, j, i). Slices concatenated in order: the result does not depend on the thread schedule.
+std::vector<Candidate> GatherCandidates(const imaging::Volume& v, const Line3& line, double radius,
+                                        double bg, const Eigen::Vector3d& origin,
+                                        const Eigen::Vector3d& along, double max_along) {
+  std::vector<std::vector<Candidate>> slices(static_cast<std::size_t>(v.dims().z()));
+  ForEachCylinderVoxel(
+      v, line, radius, bg, origin, along, max_along,
+      [&](int k, int i, int j, std::uint8_t value, const Eigen::Vector3d& p) {
+        const double x = value;
+        slices[static_cast<std::size_t>(k)].push_back({p, (x - bg) * (x - bg), i, j, k, value});
+      });
   std::size_t total = 0;
   for (const auto& c : slices) total += c.size();
   std::vector<Candidate> out;
   out.reserve(total);
   for (const auto& c : slices) out.insert(out.end(), c.begin(), c.end());
   return out;
+}
+
+// The value at rank n·99/100 (from 0, ascending) of the n voxels ForEachCylinderVoxel visits
+// (the 99th percentile std::nth_element picks from their values), counted in a histogram
+// (uint8 voxels) rather than gathered; empty when there are none.
+std::optional<std::uint8_t> CylinderPercentile99(const imaging::Volume& v, const Line3& line,
+                                                 double radius, double bg,
+                                                 const Eigen::Vector3d& origin,
+                                                 const Eigen::Vector3d& along, double max_along) {
+  using Histogram = std::array<std::uint64_t, 256>;
+  tbb::combinable<Histogram> per_thread([] { return Histogram{}; });
+  ForEachCylinderVoxel(v, line, radius, bg, origin, along, max_along,
+                       [&](int, int, int, std::uint8_t value, const Eigen::Vector3d&) {
+                         ++per_thread.local()[value];
+                       });
+  Histogram h{};
+  per_thread.combine_each([&](const Histogram& t) {
+    for (std::size_t x = 0; x < h.size(); ++x) h[x] += t[x];
+  });
+  std::uint64_t n = 0;
+  for (const std::uint64_t c : h) n += c;
+  if (n == 0) return std::nullopt;
+  const std::uint64_t rank = n * 99 / 100;
+  std::uint64_t below = 0;
+  for (std::size_t x = 0; x < h.size(); ++x) {
+    below += h[x];
+    if (below > rank) return static_cast<std::uint8_t>(x);
+  }
+  return std::nullopt;  // not reached: rank < n
 }
 
 // Whether every point within `radius` of `inner` (in the volume) lies within `outer_radius`
@@ -401,24 +452,21 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
     if (!pool.empty() && NestedCylinder(v, pool_line, pool_radius, line, radius)) {
       pool = WithinRadius(pool, line, radius);
     } else {
-      std::vector<Candidate> next = GatherCandidates(v, Line3{line.point + origin, line.direction},
-                                                     radius, threshold, origin);
-      if (std::isfinite(max_along_mm))
-        std::erase_if(next, [&](const Candidate& c) { return c.p.dot(along) > max_along_mm; });
-      pool_line = line;
-      pool_radius = radius;
-      if (pool.empty() && o.echo_level_fraction > 0 && !next.empty()) {
+      const Line3 cylinder{line.point + origin, line.direction};
+      if (pool.empty() && o.echo_level_fraction > 0) {
         // The catheter's echo level: the 99th percentile of the cylinder's voxels above the
         // background (the catheter fills a few per cent of it; speckle the rest). Only voxels
-        // above `echo_level_fraction` of the way to it are echoes of the catheter.
-        std::vector<std::uint8_t> values(next.size());
-        for (std::size_t i = 0; i < next.size(); ++i) values[i] = next[i].value;
-        auto q = values.begin() + static_cast<long>(values.size() * 99 / 100);
-        std::nth_element(values.begin(), q, values.end());
-        threshold = bg + o.echo_level_fraction * (*q - bg);
-        std::erase_if(next, [&](const Candidate& c) { return c.value <= threshold; });
-        for (auto& c : next) c.w = (c.value - threshold) * (c.value - threshold);
+        // above `echo_level_fraction` of the way to it are echoes of the catheter: the
+        // percentile from a histogram, then only those voxels gathered (the speckle above the
+        // background is most of the cylinder; gathering it first cost most of the gather).
+        if (const auto q =
+                CylinderPercentile99(v, cylinder, radius, threshold, origin, along, max_along_mm))
+          threshold = bg + o.echo_level_fraction * (*q - bg);
       }
+      std::vector<Candidate> next =
+          GatherCandidates(v, cylinder, radius, threshold, origin, along, max_along_mm);
+      pool_line = line;
+      pool_radius = radius;
       CarryFirstEchoAnswers(pool, next);
       pool = std::move(next);
     }
