@@ -1,7 +1,6 @@
 #include "tracking/echo_axis_fit.h"
 
 #include <tbb/blocked_range.h>
-#include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Eigenvalues>
@@ -100,6 +99,21 @@ class FirstEchoTest {
   Eigen::Matrix3d to_index_;
 };
 
+// A voxel's position (mm, relative to `origin`) computed one way wherever it is needed, so
+// that positions recomputed from indices equal those of the walk bit for bit.
+struct VoxelGrid {
+  explicit VoxelGrid(const imaging::Volume& v)
+      : o(v.IndexToPhysical(Eigen::Vector3d::Zero())),
+        dx(v.IndexToPhysical(Eigen::Vector3d::UnitX()) - o),
+        dy(v.IndexToPhysical(Eigen::Vector3d::UnitY()) - o),
+        dz(v.IndexToPhysical(Eigen::Vector3d::UnitZ()) - o) {}
+  Eigen::Vector3d RowStart(int j, int k, const Eigen::Vector3d& origin) const {
+    return o + j * dy + k * dz - origin;
+  }
+  Eigen::Vector3d InRow(const Eigen::Vector3d& row0, int i) const { return row0 + i * dx; }
+  Eigen::Vector3d o, dx, dy, dz;
+};
+
 // Calls visit(k, i, j, x, p) for each voxel (i, j, k) of slice k, value x above `bg`, within
 // `radius` of `line` and at most `max_along` along `along` (its position p relative to
 // `origin`), in scan order (j, i) within the slice. The squared distance to the line is a
@@ -113,10 +127,8 @@ void ForEachCylinderVoxel(const imaging::Volume& v, const Line3& line, double ra
   const Eigen::Vector3i dims = v.dims();
   const Eigen::Vector3d e = line.direction;
   auto perp = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d { return x - x.dot(e) * e; };
-  const Eigen::Vector3d o = v.IndexToPhysical(Eigen::Vector3d::Zero());
-  const Eigen::Vector3d dx = v.IndexToPhysical(Eigen::Vector3d::UnitX()) - o;
-  const Eigen::Vector3d dy = v.IndexToPhysical(Eigen::Vector3d::UnitY()) - o;
-  const Eigen::Vector3d dz = v.IndexToPhysical(Eigen::Vector3d::UnitZ()) - o;
+  const VoxelGrid grid(v);
+  const Eigen::Vector3d &o = grid.o, &dx = grid.dx, &dy = grid.dy, &dz = grid.dz;
   const Eigen::Vector3d a = perp(dx), b = perp(dy);
   const double aa = a.squaredNorm(), ab = a.dot(b), bb = b.squaredNorm(), r2 = radius * radius;
   const bool bounded = std::isfinite(max_along);
@@ -136,12 +148,12 @@ void ForEachCylinderVoxel(const imaging::Volume& v, const Line3& line, double ra
       const double acj = ac + j * ab, ccj = cc + 2 * j * bc + static_cast<double>(j) * j * bb;
       int i0 = 0, i1 = 0;
       if (!QuadraticRange(aa, acj, ccj - r2, dims.x(), i0, i1)) continue;
-      const Eigen::Vector3d row0 = o + j * dy + k * dz - origin;
+      const Eigen::Vector3d row0 = grid.RowStart(j, k, origin);
       const std::uint8_t* row = vox + j * sy + k * sz;
       for (int i = i0; i <= i1; ++i) {
         const double x = row[i];
         if (x <= bg || ccj + i * (2 * acj + i * aa) > r2) continue;
-        const Eigen::Vector3d p = row0 + i * dx;
+        const Eigen::Vector3d p = grid.InRow(row0, i);
         if (bounded && p.dot(along) > max_along) continue;
         visit(k, i, j, row[i], p);
       }
@@ -170,33 +182,51 @@ std::vector<Candidate> GatherCandidates(const imaging::Volume& v, const Line3& l
   return out;
 }
 
-// The value at rank n·99/100 (from 0, ascending) of the n voxels ForEachCylinderVoxel visits
-// (the 99th percentile std::nth_element picks from their values), counted in a histogram
-// (uint8 voxels) rather than gathered; empty when there are none.
-std::optional<std::uint8_t> CylinderPercentile99(const imaging::Volume& v, const Line3& line,
-                                                 double radius, double bg,
-                                                 const Eigen::Vector3d& origin,
-                                                 const Eigen::Vector3d& along, double max_along) {
-  using Histogram = std::array<std::uint64_t, 256>;
-  tbb::combinable<Histogram> per_thread([] { return Histogram{}; });
+// The catheter's echoes in a cylinder read for the first time, in one walk: the voxels above
+// `bg` (ForEachCylinderVoxel) kept compactly (indices and value), the echo level their 99th
+// percentile (the value at rank n·99/100 from 0, ascending, as std::nth_element picks it), the
+// threshold `fraction` of the way from `bg` to it, and the Candidates built only for the voxels
+// above it (positions recomputed from the indices by VoxelGrid, as the walk computes them;
+// weight (value − threshold)²), in scan order (k, j, i). The speckle above the background is
+// most of the cylinder: building its Candidates, or walking the cylinder twice, cost most of
+// the fit. `threshold` is left unchanged when the cylinder holds no voxel above `bg`.
+std::vector<Candidate> GatherAboveEchoLevel(const imaging::Volume& v, const Line3& line,
+                                            double radius, double bg, double fraction,
+                                            const Eigen::Vector3d& origin,
+                                            const Eigen::Vector3d& along, double max_along,
+                                            double& threshold) {
+  struct Compact {
+    int i, j;
+    std::uint8_t value;
+  };
+  std::vector<std::vector<Compact>> slices(static_cast<std::size_t>(v.dims().z()));
   ForEachCylinderVoxel(v, line, radius, bg, origin, along, max_along,
-                       [&](int, int, int, std::uint8_t value, const Eigen::Vector3d&) {
-                         ++per_thread.local()[value];
+                       [&](int k, int i, int j, std::uint8_t value, const Eigen::Vector3d&) {
+                         slices[static_cast<std::size_t>(k)].push_back({i, j, value});
                        });
-  Histogram h{};
-  per_thread.combine_each([&](const Histogram& t) {
-    for (std::size_t x = 0; x < h.size(); ++x) h[x] += t[x];
-  });
+  std::array<std::uint64_t, 256> histogram{};
   std::uint64_t n = 0;
-  for (const std::uint64_t c : h) n += c;
-  if (n == 0) return std::nullopt;
+  for (const auto& slice : slices) {
+    for (const Compact& c : slice) ++histogram[c.value];
+    n += slice.size();
+  }
+  std::vector<Candidate> out;
+  if (n == 0) return out;
   const std::uint64_t rank = n * 99 / 100;
   std::uint64_t below = 0;
-  for (std::size_t x = 0; x < h.size(); ++x) {
-    below += h[x];
-    if (below > rank) return static_cast<std::uint8_t>(x);
+  std::size_t level = 0;
+  while (below + histogram[level] <= rank) below += histogram[level++];
+  threshold = bg + fraction * (static_cast<double>(level) - bg);
+  const VoxelGrid grid(v);
+  for (std::size_t k = 0; k < slices.size(); ++k) {
+    for (const Compact& c : slices[k]) {
+      const double x = c.value;
+      if (x <= threshold) continue;
+      const Eigen::Vector3d p = grid.InRow(grid.RowStart(c.j, static_cast<int>(k), origin), c.i);
+      out.push_back({p, (x - threshold) * (x - threshold), c.i, c.j, static_cast<int>(k), c.value});
+    }
   }
-  return std::nullopt;  // not reached: rank < n
+  return out;
 }
 
 // Whether every point within `radius` of `inner` (in the volume) lies within `outer_radius`
@@ -453,18 +483,14 @@ std::optional<EchoAxisFit> FitEchoAxis(const imaging::Volume& v, const Line3& st
       pool = WithinRadius(pool, line, radius);
     } else {
       const Line3 cylinder{line.point + origin, line.direction};
-      if (pool.empty() && o.echo_level_fraction > 0) {
-        // The catheter's echo level: the 99th percentile of the cylinder's voxels above the
-        // background (the catheter fills a few per cent of it; speckle the rest). Only voxels
-        // above `echo_level_fraction` of the way to it are echoes of the catheter: the
-        // percentile from a histogram, then only those voxels gathered (the speckle above the
-        // background is most of the cylinder; gathering it first cost most of the gather).
-        if (const auto q =
-                CylinderPercentile99(v, cylinder, radius, threshold, origin, along, max_along_mm))
-          threshold = bg + o.echo_level_fraction * (*q - bg);
-      }
+      // The catheter's echo level: the 99th percentile of the cylinder's voxels above the
+      // background (the catheter fills a few per cent of it; speckle the rest). Only voxels
+      // above `echo_level_fraction` of the way to it are echoes of the catheter.
       std::vector<Candidate> next =
-          GatherCandidates(v, cylinder, radius, threshold, origin, along, max_along_mm);
+          pool.empty() && o.echo_level_fraction > 0
+              ? GatherAboveEchoLevel(v, cylinder, radius, threshold, o.echo_level_fraction, origin,
+                                     along, max_along_mm, threshold)
+              : GatherCandidates(v, cylinder, radius, threshold, origin, along, max_along_mm);
       pool_line = line;
       pool_radius = radius;
       CarryFirstEchoAnswers(pool, next);
