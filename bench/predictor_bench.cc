@@ -12,6 +12,7 @@
 
 #include "control/experiments/synthetic_motion.h"
 #include "estimation/heartbeat_ekf.h"
+#include "estimation/ls_ar_predictor.h"
 #include "estimation/motion_trace.h"
 #include "estimation/predictor_competition.h"
 #include "estimation/realistic_heart_trace.h"
@@ -110,6 +111,14 @@ void BM_ArUpdate(benchmark::State& state) {
             [] { return std::make_unique<echoservo::estimation::ArPredictor>(); });
 }
 BENCHMARK(BM_ArUpdate)->Arg(0)->Arg(1);
+
+// The least-squares AR (Gram update every measurement, every candidate order solved every
+// 0.5 s): the competition's extra cost beside the recursive AR above.
+void BM_LsArUpdate(benchmark::State& state) {
+  FeedTrace(state, state.range(0) == 0 ? Measurements() : RealisticMeasurements(),
+            [] { return std::make_unique<echoservo::estimation::LsArPredictor>(); });
+}
+BENCHMARK(BM_LsArUpdate)->Arg(0)->Arg(1);
 
 // (Re-)initialisation: the first 4 s (100 measurements) into a fresh filter, including
 // the batch rate search and, with automatic harmonics, the harmonic-count choice.
