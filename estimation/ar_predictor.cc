@@ -106,41 +106,19 @@ void ArPredictor::Refresh() {
   Vector u;
   Regressors(x_.size() - 1, u);
   const double y = newest + w_.dot(u);
-  const std::size_t span =
-      std::min(x_.size(), static_cast<std::size_t>(std::ceil(o_.range_window_s / dt_s_)));
-  const auto [lo, hi] = std::minmax_element(x_.end() - static_cast<std::ptrdiff_t>(span), x_.end());
-  const double margin = o_.margin_fraction * (*hi - *lo);
-  predicted_mm_ = std::isfinite(y) ? std::clamp(y, *lo - margin, *hi + margin) : newest;
+  predicted_mm_ = ClampToRecentRange(
+      x_, static_cast<std::size_t>(std::ceil(o_.range_window_s / dt_s_)), o_.margin_fraction, y);
 }
 
 void ArPredictor::Update(double t_s, double z) {
-  switch (grid_.Accept(t_s, z)) {
-    case SampleGrid::Step::kLearning:
-      x_.push_back(z);
-      while (x_.size() > SampleGrid::kRateIntervals + 1) x_.pop_front();
-      predicted_mm_ = z;
-      return;
-    case SampleGrid::Step::kLearned:
-      dt_s_ = grid_.dt_s();
-      Configure();
-      break;
-    case SampleGrid::Step::kNext:
-      break;
-    case SampleGrid::Step::kDropped:
-      if (!x_.empty()) {
-        FillDropped(x_, z, grid_.dropped(), keep_, [this] { Train(); });
-        ++filled_;
-        break;
-      }
-      [[fallthrough]];
-    case SampleGrid::Step::kBroken:
-      x_.clear();
-      ++history_resets_;
-      break;
+  const auto configure = [this] {
+    dt_s_ = grid_.dt_s();
+    Configure();
+  };
+  if (!AppendOnGrid(grid_, t_s, z, x_, keep_, counters_, configure, [this] { Train(); })) {
+    predicted_mm_ = z;
+    return;
   }
-  x_.push_back(z);
-  while (x_.size() > keep_) x_.pop_front();
-  Train();
   Refresh();
 }
 

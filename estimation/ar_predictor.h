@@ -58,9 +58,9 @@ class ArPredictor final : public MotionPredictor {
   int horizon_steps() const { return h_; }
   double rate_hz() const { return dt_s_ > 0.0 ? 1.0 / dt_s_ : 0.0; }
   std::size_t resets() const { return resets_; }
-  std::size_t history_resets() const { return history_resets_; }
+  std::size_t history_resets() const { return counters_.history_resets; }
   // Intervals of 2–4 nominal ones (1–3 dropped samples), filled by interpolation.
-  std::size_t filled_gaps() const { return filled_; }
+  std::size_t filled_gaps() const { return counters_.filled; }
   const ArPredictorOptions& options() const { return o_; }
 
  private:
@@ -84,8 +84,7 @@ class ArPredictor final : public MotionPredictor {
   double abs_err_ = 0.0;  // exponentially weighted mean |a-priori error| (mm)
   std::size_t trained_ = 0;
   std::size_t resets_ = 0;
-  std::size_t history_resets_ = 0;
-  std::size_t filled_ = 0;
+  GridCounters counters_;
   double predicted_mm_ = 0.0;  // x[n + h], clamped
 };
 

@@ -85,9 +85,9 @@ class LsArPredictor final : public MotionPredictor {
   // The predicting order's a-priori squared error at the horizon, averaged over
   // validation_s (mm²; 0 when none predicts).
   double recent_mse_mm2() const;
-  std::size_t history_resets() const { return history_resets_; }
+  std::size_t history_resets() const { return counters_.history_resets; }
   // Intervals of 2–4 nominal ones (1–3 dropped samples), filled by interpolation.
-  std::size_t filled_gaps() const { return filled_; }
+  std::size_t filled_gaps() const { return counters_.filled; }
   const LsArPredictorOptions& options() const { return o_; }
 
  private:
@@ -128,8 +128,7 @@ class LsArPredictor final : public MotionPredictor {
   double rows_ = 0.0;  // Σ λ^k: the effective rows learned
   std::size_t learned_ = 0;
   std::size_t resets_ = 0;
-  std::size_t history_resets_ = 0;
-  std::size_t filled_ = 0;
+  GridCounters counters_;
   std::size_t generation_ = 0;
   int largest_used_ = 0;       // the largest order that has predicted since the last reset
   double predicted_mm_ = 0.0;  // x(t_n + horizon), clamped

@@ -45,6 +45,17 @@ SampleGrid::Step SampleGrid::Accept(double t_s, double z) {
   return Step::kBroken;
 }
 
+double ClampToRecentRange(const std::deque<double>& history, std::size_t span,
+                          double margin_fraction, double y) {
+  const double newest = history.back();
+  if (!std::isfinite(y)) return newest;
+  span = std::min(history.size(), span);
+  const auto [lo, hi] =
+      std::minmax_element(history.end() - static_cast<std::ptrdiff_t>(span), history.end());
+  const double margin = margin_fraction * (*hi - *lo);
+  return std::clamp(y, *lo - margin, *hi + margin);
+}
+
 double TowardsHorizon(double newest_mm, double predicted_mm, double newest_t_s, double horizon_s,
                       double t_s) {
   const double dt = t_s - newest_t_s;

@@ -64,6 +64,55 @@ void FillDropped(std::deque<double>& history, double z, long missing, std::size_
   }
 }
 
+// What AppendOnGrid did to a history over its life.
+struct GridCounters {
+  std::size_t filled = 0;          // intervals of 2–4 nominal ones filled by interpolation
+  std::size_t history_resets = 0;  // gaps or irregular intervals (the history restarted)
+};
+
+// One measurement into a predictor's history on the grid: while the nominal interval is
+// learned, the newest kRateIntervals + 1 samples are kept and false is returned (the caller
+// holds `z`); when it is learned, `configure()` runs (it may change `keep`); dropped samples
+// are filled (each handed to `learn()`), a gap or an irregular interval clears the history;
+// then `z` is appended, the history kept to `keep`, `learn()` called, and true returned.
+// Throws as SampleGrid::Accept (nothing changed then).
+template <typename Configure, typename Learn>
+bool AppendOnGrid(SampleGrid& grid, double t_s, double z, std::deque<double>& history,
+                  const std::size_t& keep, GridCounters& counters, Configure&& configure,
+                  Learn&& learn) {
+  switch (grid.Accept(t_s, z)) {
+    case SampleGrid::Step::kLearning:
+      history.push_back(z);
+      while (history.size() > SampleGrid::kRateIntervals + 1) history.pop_front();
+      return false;
+    case SampleGrid::Step::kLearned:
+      configure();
+      break;
+    case SampleGrid::Step::kNext:
+      break;
+    case SampleGrid::Step::kDropped:
+      if (!history.empty()) {
+        FillDropped(history, z, grid.dropped(), keep, learn);
+        ++counters.filled;
+        break;
+      }
+      [[fallthrough]];
+    case SampleGrid::Step::kBroken:
+      history.clear();
+      ++counters.history_resets;
+      break;
+  }
+  history.push_back(z);
+  while (history.size() > keep) history.pop_front();
+  learn();
+  return true;
+}
+
+// `y` clamped to the newest `span` samples' range ± `margin_fraction` of it; the newest sample
+// when `y` is not finite.
+double ClampToRecentRange(const std::deque<double>& history, std::size_t span,
+                          double margin_fraction, double y);
+
 // A direct predictor's output between the newest measurement (at newest_t_s) and its
 // horizon: linear from the newest value to the prediction, held past the horizon.
 double TowardsHorizon(double newest_mm, double predicted_mm, double newest_t_s, double horizon_s,

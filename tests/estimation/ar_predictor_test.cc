@@ -9,6 +9,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "estimation/ls_ar_predictor.h"
 #include "tests/test_util/expect_error.h"
 
 namespace echoservo::estimation {
@@ -42,8 +43,16 @@ TEST(ArPredictor, LearnsAPeriodicMotionAndPredictsThroughTheLatency) {
   EXPECT_LT(std::sqrt(ss_ar / ss_zoh), 0.05);
 }
 
-TEST(ArPredictor, HoldsUntilTrainedAndAfterAGap) {
-  ArPredictor ar;
+// What both autoregressive predictors (the recursive one here and the least-squares one,
+// estimation/ls_ar_predictor.h) promise alike: the hold before training and after a gap, the
+// filled dropped sample (their shared sampling grid), and the clamp to the recent range.
+template <typename T>
+class BothArPredictors : public ::testing::Test {};
+using ArPredictorTypes = ::testing::Types<ArPredictor, LsArPredictor>;
+TYPED_TEST_SUITE(BothArPredictors, ArPredictorTypes);
+
+TYPED_TEST(BothArPredictors, HoldsUntilTrainedAndAfterAGap) {
+  TypeParam ar;
   for (int i = 0; i < 20; ++i) {
     ar.Update(i * 0.04, Beat(i * 0.04));
     EXPECT_DOUBLE_EQ(ar.Predict(i * 0.04 + 0.1), Beat(i * 0.04));  // zero-order hold
@@ -56,7 +65,7 @@ TEST(ArPredictor, HoldsUntilTrainedAndAfterAGap) {
   EXPECT_FALSE(ar.ready());
   EXPECT_DOUBLE_EQ(ar.Predict(425 * 0.04 + 0.1), 1.0);
   // One dropped sample is filled, not a reset.
-  ArPredictor filled;
+  TypeParam filled;
   for (int i = 0; i < 400; ++i)
     if (i != 300) filled.Update(i * 0.04, Beat(i * 0.04));
   EXPECT_EQ(filled.history_resets(), 0u);
@@ -64,8 +73,8 @@ TEST(ArPredictor, HoldsUntilTrainedAndAfterAGap) {
   EXPECT_TRUE(filled.ready());
 }
 
-TEST(ArPredictor, NeverLeavesTheRecentRange) {
-  ArPredictor ar;
+TYPED_TEST(BothArPredictors, NeverLeavesTheRecentRange) {
+  TypeParam ar;
   // A beat, then a sudden step of 30 mm and a ramp: whatever the weights say, the
   // prediction stays within the newest 3 s of data ± 25 % of their range.
   std::vector<double> z;
