@@ -38,7 +38,9 @@ class AtomicWords {
   void Load(T& out) const {
     std::array<std::uint64_t, kWords> w;
     for (std::size_t i = 0; i < kWords; ++i) w[i] = words_[i].load(std::memory_order_relaxed);
-    std::memcpy(&out, w.data(), sizeof(T));
+    // To void*: T is trivially copyable in its bytes (checked above) even when it has
+    // default member initialisers, which GCC's -Wclass-memaccess reads as non-trivial.
+    std::memcpy(static_cast<void*>(&out), w.data(), sizeof(T));
   }
 
  private:

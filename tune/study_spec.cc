@@ -266,7 +266,8 @@ StudySpec ParseStudySpec(std::string_view json, const std::string& path) {
   if (j.is_discarded()) {
     // Parse again for the position of the syntax error.
     try {
-      (void)SpecJson::parse(json.begin(), json.end());
+      // GCC does not take a (void) cast as using a [[nodiscard]]-like result.
+      [[maybe_unused]] const SpecJson again = SpecJson::parse(json.begin(), json.end());
     } catch (const SpecJson::parse_error& e) {
       throw std::invalid_argument(where + ": not valid JSON (" + e.what() + ")");
     }

@@ -260,7 +260,9 @@ TEST(DeadlineWatchdog, ALoopMadeSlowOnPurposeHoldsAtTheKthCycleThenRetracts) {
   ASSERT_GE(retract_at, 0);
   // Without a long preemption: the hold at the 4th cycle, the retraction by the end of the
   // cycle whose end first lies 20 ms after the first wake-up, at 2.5 ms a cycle the 8th.
-  if (expected_hold_at >= 0) EXPECT_EQ(expected_hold_at, 2 * (c.hold_after_overruns - 1) + 1);
+  if (expected_hold_at >= 0) {
+    EXPECT_EQ(expected_hold_at, 2 * (c.hold_after_overruns - 1) + 1);
+  }
   EXPECT_LE(k, static_cast<int>(c.retract_after_s / kWorkS) + 1);
   EXPECT_EQ(timer.consecutive_overruns(), static_cast<std::uint64_t>(k));
   EXPECT_EQ(w.holds(), expected_hold_at >= 0 ? 1u : 0u);

@@ -393,7 +393,9 @@ TEST(CpuLatencyRequestTest, HoldsTheLimitWhileItLivesOrSaysWhyNot) {
     EXPECT_LE(*during, 7);
   }
   // Withdrawn with the object: back to what it was (unless another process asked meanwhile).
-  if (before) EXPECT_EQ(CpuLatencyInForce(), before);
+  if (before) {
+    EXPECT_EQ(CpuLatencyInForce(), before);
+  }
 }
 
 }  // namespace

@@ -195,8 +195,9 @@ void ExpectProposal(const MotionDiagnosis& d, const std::string& term) {
   const MotionTerm file = ParseMotionModel(d.proposal->spec).terms.front();
   for (std::size_t q = 0; q < file.parameters.size(); ++q) {
     for (const ParameterEstimate& e : d.proposal->fit.estimates) {
-      if (e.name == "motion_term." + file.parameters[q])
+      if (e.name == "motion_term." + file.parameters[q]) {
         EXPECT_NEAR(file.start[q], e.value, 0.5 * e.sd + 1e-9) << e.name;
+      }
     }
   }
 }

@@ -180,8 +180,12 @@ TEST(MotionLearnedShapes, LearnAJumpAlongTimeAndDistilItIntoAStep) {
                                  [](const Formula& f) { return f.form == "step"; });
   ASSERT_NE(step, d.formulas.end()) << d.summary;
   for (const FormulaConstant& c : step->constants) {
-    if (c.name == "x0") EXPECT_NEAR(c.value, 17.3, 0.3);
-    if (c.name == "amplitude") EXPECT_NEAR(c.value, 1.5, 0.15);
+    if (c.name == "x0") {
+      EXPECT_NEAR(c.value, 17.3, 0.3);
+    }
+    if (c.name == "amplitude") {
+      EXPECT_NEAR(c.value, 1.5, 0.15);
+    }
   }
 }
 

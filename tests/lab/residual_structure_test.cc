@@ -65,7 +65,9 @@ TEST(QuantileBins, DistinctValuesGiveEqualCountsInOrder) {
   // Bins follow the values: a larger value never sits in a lower bin.
   for (std::size_t i = 0; i < x.size(); ++i) {
     for (std::size_t j = 0; j < x.size(); ++j) {
-      if (x[i] < x[j]) EXPECT_LE(bin[i], bin[j]) << x[i] << " vs " << x[j];
+      if (x[i] < x[j]) {
+        EXPECT_LE(bin[i], bin[j]) << x[i] << " vs " << x[j];
+      }
     }
   }
 }
@@ -86,8 +88,12 @@ TEST(QuantileBins, TiesShareABin) {
   EXPECT_EQ(*zero_bins.begin(), 0);
   for (std::size_t i = 0; i < x.size(); ++i) {
     for (std::size_t j = 0; j < x.size(); ++j) {
-      if (x[i] == x[j]) EXPECT_EQ(bin[i], bin[j]);
-      if (x[i] < x[j]) EXPECT_LE(bin[i], bin[j]);
+      if (x[i] == x[j]) {
+        EXPECT_EQ(bin[i], bin[j]);
+      }
+      if (x[i] < x[j]) {
+        EXPECT_LE(bin[i], bin[j]);
+      }
     }
   }
   EXPECT_GT(*std::max_element(bin.begin(), bin.end()), 1);  // the distinct values are split

@@ -67,7 +67,9 @@ TEST(PipelineParameters, EveryRegistryDefaultIsTheOptionsDefault) {
   for (const ParameterInfo& p : Parameters()) {
     EXPECT_EQ(p.default_value, Get(calibrated, p.name)) << p.name;
     EXPECT_EQ(Get(demo_settings, p.name), p.default_value) << p.name << " (demo's flags)";
-    if (p.stage != "servo") EXPECT_EQ(Get(options, p.name), p.default_value) << p.name;
+    if (p.stage != "servo") {
+      EXPECT_EQ(Get(options, p.name), p.default_value) << p.name;
+    }
   }
 }
 
@@ -110,7 +112,9 @@ TEST(PipelineParameters, ListIsSortedNamedByStageWithUnitsAndSensibleBounds) {
   std::set<std::string> stages;
   for (std::size_t i = 0; i < all.size(); ++i) {
     const ParameterInfo& p = all[i];
-    if (i > 0) EXPECT_LT(all[i - 1].name, p.name);  // sorted, unique
+    if (i > 0) {  // sorted, unique
+      EXPECT_LT(all[i - 1].name, p.name);
+    }
     EXPECT_EQ(p.name.substr(0, p.name.find('.')), p.stage) << p.name;
     stages.insert(p.stage);
     EXPECT_FALSE(p.unit.empty()) << p.name;
@@ -148,8 +152,9 @@ TEST(PipelineParameters, EveryParameterReadsBackWhatItSetsAndNothingElse) {
       Set(s, p.name, v);
       EXPECT_EQ(Get(s, p.name), v) << p.name;
       for (const ParameterInfo& q : Parameters())
-        if (q.name != p.name)
+        if (q.name != p.name) {
           EXPECT_EQ(Get(s, q.name), Get(d, q.name)) << p.name << " moved " << q.name;
+        }
     }
   }
   // The values land in the options the pipeline's stages read.

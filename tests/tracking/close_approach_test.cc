@@ -76,8 +76,9 @@ void ExpectTargetAtGap(double gap_mm, std::uint64_t seed) {
   // The tip too where the target search re-locates it (gaps below close_gap_mm: FindTip's
   // bright run can go on into the tissue): the same bound (the tip's spread is ~0.2 mm,
   // docs/detector.md).
-  if (gap_mm < EdgeOptions{}.close_gap_mm)
+  if (gap_mm < EdgeOptions{}.close_gap_mm) {
     EXPECT_LE((d.tip_mm - r.truth.tip_mm).norm(), 0.5) << gap_mm;
+  }
   if (gap_mm <= 0.0) {
     EXPECT_TRUE(d.contact) << gap_mm;
     EXPECT_EQ(d.target_gap_mm, 0.0);
@@ -85,7 +86,9 @@ void ExpectTargetAtGap(double gap_mm, std::uint64_t seed) {
   } else {
     EXPECT_NEAR(d.target_gap_mm, (d.target_mm - d.tip_mm).norm(), 1e-9);
   }
-  if (gap_mm >= 1.0) EXPECT_FALSE(d.contact) << gap_mm;
+  if (gap_mm >= 1.0) {
+    EXPECT_FALSE(d.contact) << gap_mm;
+  }
 }
 
 TEST(CloseApproach, ContactIsFoundAndFlagged) { ExpectTargetAtGap(0.0, 3); }
