@@ -103,8 +103,9 @@ TEST(DemoCli, ShortRunWritesARunThatTheReportReads) {
             timing["wakeup_latency_us"]["max"].get<double>());
   const auto& rt = j["realtime"];
   EXPECT_TRUE(rt["requested"].get<bool>());
-  if (!rt["fifo"].get<bool>() || !rt["memory_locked"].get<bool>())
+  if (!rt["fifo"].get<bool>() || !rt["memory_locked"].get<bool>()) {
     EXPECT_FALSE(rt["refusals"].empty()) << rt.dump();  // never silently ignored
+  }
   EXPECT_EQ(j["deadline"]["hold_after_overruns"].get<int>(), 10);
   for (const char* f : {"run.json", "targets.csv", "servo.csv", "latency.csv", "em.csv",
                         "truth.csv", "timing.json", "tracker.json", "report.html"})

@@ -305,7 +305,9 @@ TEST(LabCli, ModelOfTheWrongKindOfDataIsNamed) {
     EXPECT_TRUE(Contains(r.err, trial.string() + " is a catheter trial (columns t, base_cmd"))
         << r.err;
     EXPECT_TRUE(Contains(r.err, "echoservo lab compare " + dir.str() + " --model seed")) << r.err;
-    if (!model.empty()) EXPECT_TRUE(Contains(r.err, model.substr(9))) << r.err;
+    if (!model.empty()) {
+      EXPECT_TRUE(Contains(r.err, model.substr(9))) << r.err;
+    }
   }
   const Result folder = RunCli("lab compare " + dir.str() + " --model heartbeat:2");
   EXPECT_NE(folder.rc, 0);

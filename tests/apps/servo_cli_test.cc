@@ -60,7 +60,9 @@ TEST(ServoCli, RealTimeIsGrantedOrItsRefusalIsSaid) {
   } else {
     EXPECT_FALSE(rt["refusals"].empty()) << rt.dump();
   }
-  if (!rt["memory_locked"].get<bool>()) EXPECT_FALSE(rt["refusals"].empty()) << rt.dump();
+  if (!rt["memory_locked"].get<bool>()) {
+    EXPECT_FALSE(rt["refusals"].empty()) << rt.dump();
+  }
   const auto off = RunServo("--no-realtime", 74);
   EXPECT_FALSE(off["realtime"]["requested"].get<bool>());
   EXPECT_FALSE(off["realtime"]["fifo"].get<bool>());

@@ -204,7 +204,9 @@ void ExpectExactly(Recorder& rec, int first, int count, double period_s) {
     EXPECT_TRUE(s.valid) << n;
     EXPECT_LT((s.position_mm - PoseAt(n).block<3, 1>(0, 3)).norm(), 1e-4) << n;
     EXPECT_LT((s.tool_to_tracker.matrix() - PoseAt(n)).cwiseAbs().maxCoeff(), 1e-4) << n;
-    if (i > 0) EXPECT_GT(s.t_s, rec.samples[i - 1].t_s) << n;
+    if (i > 0) {
+      EXPECT_GT(s.t_s, rec.samples[i - 1].t_s) << n;
+    }
   }
 }
 

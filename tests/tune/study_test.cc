@@ -423,13 +423,17 @@ TEST_F(StudyRunnerTest, FailedTrialsAreRecordedWithTheirReasonAndARerunSkipsFini
   // How each process ended, and its log.
   for (const StudyTrial& t : ReadTrials(study())) {
     ASSERT_TRUE(t.outcome.has_value()) << t.id;
-    if (t.id == "s0001-r00") EXPECT_EQ(t.outcome->signal, SIGSEGV);
+    if (t.id == "s0001-r00") {
+      EXPECT_EQ(t.outcome->signal, SIGSEGV);
+    }
     if (t.id == "s0002-r00") {
       EXPECT_TRUE(t.outcome->timed_out);
       EXPECT_GE(t.outcome->wall_s, 0.5);
       EXPECT_LT(t.outcome->wall_s, 3.0);  // SIGTERM ended it, not the 3 s SIGKILL grace
     }
-    if (t.id == "s0003-r00") EXPECT_EQ(t.outcome->exit_code, 3);
+    if (t.id == "s0003-r00") {
+      EXPECT_EQ(t.outcome->exit_code, 3);
+    }
     ExpectContains(ReadText(TrialDir(study(), t.id) / "log.txt"), "fake trial " + t.id);
   }
   EXPECT_EQ(log.size(), 8u);  // the header, 6 trials, the best set
