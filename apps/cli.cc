@@ -3,7 +3,11 @@
 #include <CLI/CLI.hpp>
 #include <cstdlib>
 #include <exception>
+#include <filesystem>
 #include <iostream>
+#include <mutex>
+#include <sstream>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -91,7 +95,55 @@ int ParseBatch() {
   return 0;
 }
 
+// Redirects a standard stream into a string buffer for its lifetime.
+class Redirect {
+ public:
+  explicit Redirect(std::ostream& stream) : stream_(stream), old_(stream.rdbuf(buffer_.rdbuf())) {}
+  ~Redirect() { stream_.rdbuf(old_); }
+  Redirect(const Redirect&) = delete;
+  Redirect& operator=(const Redirect&) = delete;
+  std::string str() const { return buffer_.str(); }
+
+ private:
+  std::ostream& stream_;
+  std::ostringstream buffer_;
+  std::streambuf* old_;
+};
+
+std::mutex program_mutex;
+std::string program_path;  // empty: /proc/self/exe
+
 }  // namespace
+
+void SetProgramPath(const std::string& path) {
+  std::lock_guard<std::mutex> lock(program_mutex);
+  program_path = path;
+}
+
+std::string ProgramPath() {
+  {
+    std::lock_guard<std::mutex> lock(program_mutex);
+    if (!program_path.empty()) return program_path;
+  }
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec)
+    throw std::runtime_error("cannot find this program (/proc/self/exe: " + ec.message() + ")");
+  return self.string();
+}
+
+int RunCommand(const std::vector<std::string>& args, std::string& out, std::string& err) {
+  std::vector<const char*> argv{"echoservo"};
+  for (const std::string& a : args) argv.push_back(a.c_str());
+  int rc = 0;
+  {
+    Redirect cout_to(std::cout), cerr_to(std::cerr);
+    rc = RunOnce(static_cast<int>(argv.size()), argv.data(), false);
+    out = cout_to.str();
+    err = cerr_to.str();
+  }
+  return rc;
+}
 
 int RunCli(int argc, char** argv) {
   const char* parse_only = std::getenv("ECHOSERVO_PARSE_ONLY");

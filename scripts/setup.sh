@@ -16,7 +16,7 @@ packages=(
   libtbb-dev
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
   libssl-dev
-  python3
+  python3 python3-dev python3-numpy python3-matplotlib pybind11-dev
   zlib1g-dev
   xvfb
   xauth
@@ -28,6 +28,16 @@ packages=(
   munge
 )
 
+# Debian's /usr/bin/python3 finds the Python module (python/, built into build/python) from
+# anywhere: an echoservo.pth in its /usr/local site folder (root only; docs/python.md).
+python_path() {
+  [ "$(id -u)" -eq 0 ] && [ -x /usr/bin/python3 ] || return 0
+  local site
+  site="$(/usr/bin/python3 -c 'import sys; v = sys.version_info; print(f"/usr/local/lib/python{v.major}.{v.minor}/dist-packages")')"
+  mkdir -p "$site"
+  echo "$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)/build/python" >"$site/echoservo.pth"
+}
+
 missing=()
 for p in "${packages[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed'; then
@@ -37,6 +47,7 @@ done
 
 if [ "${#missing[@]}" -eq 0 ]; then
   echo "setup: all ${#packages[@]} packages already installed"
+  python_path
   exit 0
 fi
 
@@ -53,3 +64,4 @@ echo "setup: installing ${missing[*]}"
 "${as_root[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update
 "${as_root[@]}" env DEBIAN_FRONTEND=noninteractive \
   apt-get install -y --no-install-recommends "${packages[@]}"
+python_path

@@ -66,6 +66,19 @@ nlohmann::json Vec3(const Eigen::Vector3d& v) {
 
 }  // namespace
 
+tracking::RadonDetectorOptions WithDetectSet(const tracking::RadonDetectorOptions& options,
+                                             const std::vector<live::Assignment>& assignments) {
+  live::PipelineSettings settings = live::DefaultSettings();
+  settings.tracker.detector = options;
+  try {
+    live::Apply(live::RequireStages(assignments, "detect", {"detector", "target"}), settings);
+  } catch (const std::invalid_argument& e) {
+    const std::string why = e.what();
+    throw std::invalid_argument(why.rfind("--set", 0) == 0 ? why : "detect --set: " + why);
+  }
+  return settings.tracker.detector;
+}
+
 void AddDetectCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "detect", "Detect the catheter axis, tip and target in a volume or PLUS sequence");
@@ -112,17 +125,8 @@ void AddDetectCommand(CLI::App& app) {
       options->beams =
           tracking::BeamGeometry::Parallel(ParseVec3(*beam_direction, "--beam-direction", true));
     // --set: the detector's and the target profile's parameters, over the flags above.
-    if (!set->assignments.empty()) {
-      live::PipelineSettings settings = live::DefaultSettings();
-      settings.tracker.detector = *options;
-      try {
-        live::Apply(set->ParsedFor("detect", {"detector", "target"}), settings);
-      } catch (const std::invalid_argument& e) {
-        const std::string why = e.what();
-        throw std::invalid_argument(why.rfind("--set", 0) == 0 ? why : "detect --set: " + why);
-      }
-      *options = settings.tracker.detector;
-    }
+    if (!set->assignments.empty())
+      *options = WithDetectSet(*options, set->ParsedFor("detect", {"detector", "target"}));
     tracking::RadonDetector detector(*options);  // validates the combination (wire ≤ sheath)
     auto source = imaging::OpenRecording(*file);
     nlohmann::json frames = nlohmann::json::array();

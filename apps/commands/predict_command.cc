@@ -18,26 +18,6 @@
 namespace echoservo::apps {
 namespace {
 
-struct PredictFlags {
-  std::string trace;
-  std::string column;
-  std::string truth;
-  double latency_s = 0.1;
-  double rate_hz = 0.0;
-  std::string harmonics = "auto";
-  bool respiration = false;     // force the respiration state on
-  bool no_respiration = false;  // force it off (default: automatic)
-  double noise_mm = 0.0;
-  double init_window_s = 4.0;
-  double min_hz = 0.6;
-  double max_hz = 3.0;
-  bool json = false;
-  std::string realistic;  // a realistic trace class instead of TRACE
-  std::uint64_t seed = 1;
-  double duration_s = 30.0;
-  std::string combination = "best";
-};
-
 int ParseHarmonics(const std::string& text) {
   if (text == "auto") return 0;
   int n = 0;
@@ -141,6 +121,72 @@ void LoadPredictTraces(const PredictFlags& f, estimation::MotionTrace& trace,
   }
 }
 
+// `predict --json`'s object.
+nlohmann::json PredictionJson(const PredictFlags& f, const estimation::MotionTrace& trace,
+                              const estimation::PredictionRun& r) {
+  const double zoh = r.baselines.front().rms_mm;
+  const double bpm = r.heart_rate.bpm();
+  const bool bpm_valid = r.heart_rate.significant;
+  nlohmann::json baselines = nlohmann::json::object();
+  for (const auto& b : r.baselines) baselines[b.name] = ScoreJson(b);
+  nlohmann::json competitors = nlohmann::json::object();
+  for (const auto& c : r.competitors) competitors[c.name] = ScoreJson(c);
+  nlohmann::json chosen = nlohmann::json::object();
+  for (const auto& [name, fraction] : r.chosen_fraction) chosen[name] = fraction;
+  nlohmann::json shipped = ScoreJson(r.shipped);
+  shipped["switches"] = r.switches;
+  nlohmann::json j = {
+      {"trace", f.trace},
+      {"column", trace.column},
+      {"reference", f.truth.empty() ? trace.column : f.truth},
+      {"latency_s", f.latency_s},
+      {"measurements", r.measurements},
+      {"measurement_rate_hz", r.measurement_rate_hz},
+      {"gaps", r.gaps},
+      {"scored", r.scored},
+      {"scored_from_s", r.scored_from_s},
+      {"unscored_in_gaps", r.unscored_in_gaps},
+      {"ekf_rms_mm", r.shipped.rms_mm},
+      {"shipped", shipped},
+      {"competitors", competitors},
+      {"chosen", chosen},
+      {"ekf",
+       {{"rms_mm", r.ekf.rms_mm},
+        {"mae_mm", r.ekf.mae_mm},
+        {"max_mm", r.ekf.max_mm},
+        {"harmonics", r.harmonics},
+        {"heart_rate_bpm", bpm_valid ? nlohmann::json(bpm) : nlohmann::json(nullptr)},
+        {"filter_rate_bpm", 60.0 * r.rate_hz},
+        {"heart_rate",
+         {{"significant", r.heart_rate.significant},
+          {"candidate_bpm", r.heart_rate.bpm()},
+          {"window_s", r.heart_rate_window_s},
+          {"p_value", r.heart_rate.p_value},
+          {"acf_period_s", r.heart_rate.acf_period_s},
+          {"acf_at_period", r.heart_rate.acf_at_period},
+          {"fundamental_share", r.heart_rate.fundamental_share},
+          {"corrections", r.heart_rate.corrections},
+          {"reason", r.heart_rate.reason}}},
+        {"reacquisitions", r.reacquisitions},
+        {"noise_mm", r.noise_mm},
+        {"respiration", r.respiration},
+        {"respiration_mode", RespirationMode(f)},
+        {"offset_rate_q_mm_s", r.offset_rate_q_mm_s},
+        {"accepted", r.accepted},
+        {"rejected", r.rejected},
+        {"initialisations", r.initialisations}}},
+      {"autoregressive", {{"order", r.ar_order}, {"horizon_steps", r.ar_horizon_steps}}},
+      {"autoregressive_ls", {{"order", r.ls_ar_order}, {"stride", r.ls_ar_stride}}},
+      {"ekf_ar_blend",
+       {{"ekf_weight", std::isfinite(r.blend_ekf_weight) ? nlohmann::json(r.blend_ekf_weight)
+                                                         : nlohmann::json(nullptr)}}},
+      {"baselines", baselines},
+      {"zoh_over_ekf", zoh / r.shipped.rms_mm},
+      {"constant_velocity_kf_accel_psd_mm2_s3", r.cv_accel_psd_mm2_s3}};
+  AddReferenceJson(r, j);
+  return j;
+}
+
 // The run's figures: JSON (--json) or a table and a line on the EKF.
 void PrintPrediction(const PredictFlags& f, const estimation::MotionTrace& trace,
                      const estimation::PredictionRun& r) {
@@ -149,64 +195,7 @@ void PrintPrediction(const PredictFlags& f, const estimation::MotionTrace& trace
   const double bpm = r.heart_rate.bpm();
   const bool bpm_valid = r.heart_rate.significant;
   if (f.json) {
-    nlohmann::json baselines = nlohmann::json::object();
-    for (const auto& b : r.baselines) baselines[b.name] = ScoreJson(b);
-    nlohmann::json competitors = nlohmann::json::object();
-    for (const auto& c : r.competitors) competitors[c.name] = ScoreJson(c);
-    nlohmann::json chosen = nlohmann::json::object();
-    for (const auto& [name, fraction] : r.chosen_fraction) chosen[name] = fraction;
-    nlohmann::json shipped = ScoreJson(r.shipped);
-    shipped["switches"] = r.switches;
-    nlohmann::json j = {
-        {"trace", f.trace},
-        {"column", trace.column},
-        {"reference", f.truth.empty() ? trace.column : f.truth},
-        {"latency_s", f.latency_s},
-        {"measurements", r.measurements},
-        {"measurement_rate_hz", r.measurement_rate_hz},
-        {"gaps", r.gaps},
-        {"scored", r.scored},
-        {"scored_from_s", r.scored_from_s},
-        {"unscored_in_gaps", r.unscored_in_gaps},
-        {"ekf_rms_mm", r.shipped.rms_mm},
-        {"shipped", shipped},
-        {"competitors", competitors},
-        {"chosen", chosen},
-        {"ekf",
-         {{"rms_mm", r.ekf.rms_mm},
-          {"mae_mm", r.ekf.mae_mm},
-          {"max_mm", r.ekf.max_mm},
-          {"harmonics", r.harmonics},
-          {"heart_rate_bpm", bpm_valid ? nlohmann::json(bpm) : nlohmann::json(nullptr)},
-          {"filter_rate_bpm", 60.0 * r.rate_hz},
-          {"heart_rate",
-           {{"significant", r.heart_rate.significant},
-            {"candidate_bpm", r.heart_rate.bpm()},
-            {"window_s", r.heart_rate_window_s},
-            {"p_value", r.heart_rate.p_value},
-            {"acf_period_s", r.heart_rate.acf_period_s},
-            {"acf_at_period", r.heart_rate.acf_at_period},
-            {"fundamental_share", r.heart_rate.fundamental_share},
-            {"corrections", r.heart_rate.corrections},
-            {"reason", r.heart_rate.reason}}},
-          {"reacquisitions", r.reacquisitions},
-          {"noise_mm", r.noise_mm},
-          {"respiration", r.respiration},
-          {"respiration_mode", RespirationMode(f)},
-          {"offset_rate_q_mm_s", r.offset_rate_q_mm_s},
-          {"accepted", r.accepted},
-          {"rejected", r.rejected},
-          {"initialisations", r.initialisations}}},
-        {"autoregressive", {{"order", r.ar_order}, {"horizon_steps", r.ar_horizon_steps}}},
-        {"autoregressive_ls", {{"order", r.ls_ar_order}, {"stride", r.ls_ar_stride}}},
-        {"ekf_ar_blend",
-         {{"ekf_weight", std::isfinite(r.blend_ekf_weight) ? nlohmann::json(r.blend_ekf_weight)
-                                                           : nlohmann::json(nullptr)}}},
-        {"baselines", baselines},
-        {"zoh_over_ekf", zoh / r.shipped.rms_mm},
-        {"constant_velocity_kf_accel_psd_mm2_s3", r.cv_accel_psd_mm2_s3}};
-    AddReferenceJson(r, j);
-    std::cout << j.dump(2) << "\n";
+    std::cout << PredictionJson(f, trace, r).dump(2) << "\n";
     return;
   }
   std::cout << "trace " << (f.realistic.empty() ? f.trace : trace.source) << " (column "
@@ -248,11 +237,9 @@ void PrintPrediction(const PredictFlags& f, const estimation::MotionTrace& trace
             << " [" << RespirationMode(f) << "]\n";
 }
 
-void RunPredict(const PredictFlags& f) {
-  estimation::MotionTrace trace;
-  estimation::MotionTrace truth;
+// The prediction's options from the flags (o.truth is set by the caller).
+estimation::PredictionRunOptions PredictOptions(const PredictFlags& f) {
   estimation::PredictionRunOptions o;
-  LoadPredictTraces(f, trace, truth, o);
   if (f.combination == "weighted") {
     o.combination = estimation::Combination::kWeighted;
   } else if (f.combination != "best") {
@@ -269,10 +256,27 @@ void RunPredict(const PredictFlags& f) {
   o.ekf.init_window_s = f.init_window_s;
   o.ekf.min_rate_hz = f.min_hz;
   o.ekf.max_rate_hz = f.max_hz;
+  return o;
+}
+
+void RunPredict(const PredictFlags& f) {
+  estimation::MotionTrace trace;
+  estimation::MotionTrace truth;
+  estimation::PredictionRunOptions o = PredictOptions(f);
+  LoadPredictTraces(f, trace, truth, o);
   PrintPrediction(f, trace, estimation::RunPrediction(trace, o));
 }
 
 }  // namespace
+
+std::string PredictJsonText(const PredictFlags& f, const estimation::MotionTrace& trace,
+                            const estimation::MotionTrace* truth) {
+  estimation::ValidateMotionTrace(trace);
+  if (truth) estimation::ValidateMotionTrace(*truth);
+  estimation::PredictionRunOptions o = PredictOptions(f);
+  o.truth = truth;
+  return PredictionJson(f, trace, estimation::RunPrediction(trace, o)).dump();
+}
 
 void AddPredictCommand(CLI::App& app) {
   auto f = std::make_shared<PredictFlags>();

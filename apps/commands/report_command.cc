@@ -23,24 +23,6 @@
 namespace echoservo::apps {
 namespace {
 
-struct ReportFlags {
-  std::string run;
-  std::string em;
-  std::string em_format = "auto";
-  std::string em_units;
-  std::string sensor;
-  std::string out;
-  std::string em_to_image;
-  std::string tracker_lag;  // s, or a `calibrate temporal --json` file
-  std::optional<double> from_s;
-  double max_offset_s = 2.0;
-  double offset_center_s = std::numeric_limits<double>::quiet_NaN();
-  int phase_bins = 10;
-  bool json = false;
-  bool force = false;
-  std::string from_reason = "--from";
-};
-
 // 12 or 16 numbers, row-major: a rigid transform (mm).
 // --tracker-lag: a number of seconds, or the JSON a `calibrate temporal --json` printed
 // (its tracker_lag_s). Returns the lag and the words the report shows for its source.
@@ -109,8 +91,9 @@ void WritePage(const std::string& out, const std::string& html) {
 }
 
 // Reads the run and its EM log, computes the metrics and writes the HTML page.
+// An empty --out (the Python API) writes no page.
 Produced Produce(const ReportFlags& f) {
-  CheckOut(f.out);  // before the work
+  if (!f.out.empty()) CheckOut(f.out);  // before the work
   const formats::RunRecord run = formats::ReadRunRecord(f.run);
   for (const std::string& w : run.info.warnings) std::fprintf(stderr, "report: %s\n", w.c_str());
   std::string em_path = f.em;
@@ -170,7 +153,7 @@ Produced Produce(const ReportFlags& f) {
   report::AccuracyReportOptions ro;
   ro.run_path = f.run;
   ro.em_path = em_path;
-  WritePage(f.out, report::RenderAccuracyReport(run, m, ro));
+  if (!f.out.empty()) WritePage(f.out, report::RenderAccuracyReport(run, m, ro));
   return {m, ro, em};
 }
 
@@ -220,6 +203,14 @@ void RunReport(const ReportFlags& f) {
 }
 
 }  // namespace
+
+ReportResult ProduceReport(const ReportFlags& f) {
+  Produced p = Produce(f);
+  ReportResult r;
+  r.json = report::AccuracyJson(p.metrics, p.options);
+  r.metrics = std::move(p.metrics);
+  return r;
+}
 
 double WriteRunReport(const std::string& run_dir, const std::string& html_path, double from_s) {
   ReportFlags f;

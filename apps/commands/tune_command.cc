@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/cli.h"
 #include "apps/commands/tune_commands.h"
 #include "tune/executor.h"
 #include "tune/slurm_executor.h"
@@ -37,14 +38,6 @@ struct TuneStudyFlags {
 };
 
 // The running program, for the trial processes.
-std::string TuneSelfExe() {
-  std::error_code ec;
-  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  if (ec)
-    throw std::runtime_error("tune: cannot find this program (/proc/self/exe: " + ec.message() +
-                             ")");
-  return self.string();
-}
 
 void RunTuneStudy(const TuneStudyFlags& f) {
   tune::StudySpec spec = tune::ReadStudySpec(f.spec);
@@ -53,7 +46,7 @@ void RunTuneStudy(const TuneStudyFlags& f) {
   std::unique_ptr<tune::TrialExecutor> executor;
   if (f.slurm) {
     tune::SlurmExecutorOptions o;
-    o.echoservo_exe = TuneSelfExe();
+    o.echoservo_exe = ProgramPath();
     o.sbatch = f.sbatch;
     o.partition = f.slurm_partition;
     o.timeout_s = spec.timeout_s;
@@ -62,7 +55,7 @@ void RunTuneStudy(const TuneStudyFlags& f) {
     executor = tune::MakeSlurmExecutor(o);
   } else {
     tune::LocalExecutorOptions o;
-    o.echoservo_exe = TuneSelfExe();
+    o.echoservo_exe = ProgramPath();
     o.jobs = spec.jobs;
     o.timeout_s = spec.timeout_s;
     executor = tune::MakeLocalExecutor(o);
