@@ -79,6 +79,8 @@ std::shared_ptr<imaging::Volume> VolumeArgument(const py::object& volume,
       throw py::value_error("spacing_mm, origin_mm: only with an array (a Volume has its own)");
     return volume.cast<std::shared_ptr<imaging::Volume>>();
   }
+  if (volume.is_none())
+    throw py::value_error("volume: expected a Volume or a uint8 (nz, ny, nx) array, got None");
   if (spacing_mm.is_none())
     throw py::value_error("spacing_mm: required with an array (the voxel pitch, mm)");
   py::object ctor = py::module_::import("echoservo").attr("Volume");

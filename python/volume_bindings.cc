@@ -274,6 +274,14 @@ void BindSequence(py::module_& m) {
           "without the Transform suffix); NaN for a frame where it is absent or its status is\n"
           "not OK")
       .def(
+          "write",
+          [](const PlusSequence& s, const std::filesystem::path& p, bool compress) {
+            imaging::WritePlusSequence(s, p, compress);
+          },
+          py::arg("path"), py::arg("compress") = true, py::call_guard<py::gil_scoped_release>(),
+          "Write this sequence (its pixels as they are now: `pixels` is writable, and its\n"
+          "fields) to .igs.mha (or .igs.nrrd), zlib/gzip when compress.")
+      .def(
           "volume",
           [](const PlusSequence& s, std::size_t i) {
             if (i >= s.frames.size())

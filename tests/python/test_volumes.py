@@ -107,6 +107,13 @@ class Sequences(unittest.TestCase):
         self.assertEqual(len(s), 3)
         np.testing.assert_allclose(s.timestamps_s, [0, 0.04, 0.08])
         self.assertEqual(int(s.pixels[2].max()), 20)
+        # Edit the pixels in place (a view) and write the sequence with its fields.
+        s.pixels[1] = 77
+        path2 = os.path.join(workdir(), "edited.igs.mha")
+        s.write(path2)
+        e = echoservo.read_sequence(path2)
+        self.assertEqual(int(e.pixels[1].min()), 77)
+        self.assertEqual(e.frame_fields(2), s.frame_fields(2))
         with self.assertRaises(IndexError):
             s.volume(3)
         with self.assertRaisesRegex(ValueError, "volumes: at least one"):
