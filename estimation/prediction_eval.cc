@@ -135,7 +135,14 @@ PredictionRun RunPrediction(const MotionTrace& trace, const PredictionRunOptions
       ++run.unscored_in_gaps;
       continue;
     }
-    const double e = competition.Predict(target_t) - truth;
+    const double shipped = competition.Predict(target_t);
+    const double e = shipped - truth;
+    if (o.keep_series) {
+      run.series.t_s.push_back(target_t);
+      run.series.truth_mm.push_back(truth);
+      run.series.shipped_mm.push_back(shipped);
+      run.series.chosen.push_back(static_cast<int>(competition.chosen()));
+    }
     shipped_acc.Add(e);
     const bool second_half = t >= split_s;
     if (second_half) {

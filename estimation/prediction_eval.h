@@ -37,6 +37,7 @@ struct PredictionRunOptions {
   HeartbeatEkfOptions ekf;
   const MotionTrace* truth = nullptr;  // reference for the errors; null: the trace itself
   bool keep_errors = false;            // fill PredictionRun::ekf_errors_mm
+  bool keep_series = false;            // fill PredictionRun::series
   // The competition's choice rule (what ships): pick the best, or a weighted mix.
   Combination combination = Combination::kPickBest;
   double competition_window_s = 8.0;
@@ -103,6 +104,13 @@ struct PredictionRun {
   SecondHalfScores second_half;
   std::vector<double> ekf_errors_mm;      // with keep_errors: the EKF alone
   std::vector<double> shipped_errors_mm;  // with keep_errors: the competition's output
+  // With keep_series, every scored instant: the time predicted (a measurement's time + the
+  // latency, s), the reference there (mm), what shipped (mm) and the competitor chosen
+  // (index into `competitors`).
+  struct Series {
+    std::vector<double> t_s, truth_mm, shipped_mm;
+    std::vector<int> chosen;
+  } series;
 };
 
 // Throws std::invalid_argument for a bad trace or options (naming where and why), and

@@ -69,12 +69,25 @@ void RegisterMotion(py::module_& m) {
         f.min_hz = min_hz;
         f.max_hz = max_hz;
         f.combination = combination;
-        std::string json;
+        apps::PredictResult r;
         {
           py::gil_scoped_release release;
-          json = apps::PredictJsonText(f, trace, truth ? &*truth : nullptr);
+          r = apps::PredictInMemory(f, trace, truth ? &*truth : nullptr);
         }
-        return FromJson(json);
+        py::dict d = FromJson(r.json);
+        const auto& s = r.run.series;
+        py::dict series;
+        series["t_s"] = ToArray(s.t_s);
+        series["truth_mm"] = ToArray(s.truth_mm);
+        series["shipped_mm"] = ToArray(s.shipped_mm);
+        py::array_t<int> chosen(static_cast<py::ssize_t>(s.chosen.size()));
+        std::copy(s.chosen.begin(), s.chosen.end(), chosen.mutable_data());
+        series["chosen"] = chosen;
+        py::list names;
+        for (const auto& c : r.run.competitors) names.append(c.name);
+        series["competitors"] = names;
+        d["series"] = series;
+        return d;
       },
       py::arg("t_s"), py::arg("position_mm"), py::arg("truth_mm") = py::none(), py::kw_only(),
       py::arg("truth_t_s") = py::none(), py::arg("latency_s") = 0.1, py::arg("rate_hz") = 0.0,
@@ -89,7 +102,10 @@ void RegisterMotion(py::module_& m) {
       "truth_mm: score against it instead (e.g. noise-free), sampled at truth_t_s (default:\n"
       "t_s). latency_s: the horizon;\n"
       "rate_hz: measure at this rate by interpolation (0: every sample); harmonics: 'auto' or\n"
-      "1-12; respiration: None (automatic), True or False. Returns the command's dict.");
+      "1-12; respiration: None (automatic), True or False. Returns the command's dict plus\n"
+      "'series': at every scored instant the time predicted (t_s: a measurement's time +\n"
+      "latency_s), the reference there (truth_mm), what shipped (shipped_mm) and the competitor\n"
+      "chosen (chosen: index into series['competitors']).");
   m.def(
       "read_motion_trace",
       [](const std::filesystem::path& p, const std::string& column) {

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "estimation/motion_trace.h"
+#include "estimation/prediction_eval.h"
 
 namespace CLI {
 class App;
@@ -36,9 +37,14 @@ struct PredictFlags {
 
 void AddPredictCommand(CLI::App& app);
 // `predict --json`'s object (as text) for a trace in memory, scored against `truth` when not
-// null (the Python API: python/). Throws std::invalid_argument like the command.
-std::string PredictJsonText(const PredictFlags& f, const estimation::MotionTrace& trace,
-                            const estimation::MotionTrace* truth);
+// null, and the run behind it with its series (the Python API: python/). Throws
+// std::invalid_argument like the command.
+struct PredictResult {
+  std::string json;
+  estimation::PredictionRun run;
+};
+PredictResult PredictInMemory(const PredictFlags& f, const estimation::MotionTrace& trace,
+                              const estimation::MotionTrace* truth);
 void AddSimMotion(CLI::App* sim);
 
 }  // namespace echoservo::apps

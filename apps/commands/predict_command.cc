@@ -269,13 +269,17 @@ void RunPredict(const PredictFlags& f) {
 
 }  // namespace
 
-std::string PredictJsonText(const PredictFlags& f, const estimation::MotionTrace& trace,
-                            const estimation::MotionTrace* truth) {
+PredictResult PredictInMemory(const PredictFlags& f, const estimation::MotionTrace& trace,
+                              const estimation::MotionTrace* truth) {
   estimation::ValidateMotionTrace(trace);
   if (truth) estimation::ValidateMotionTrace(*truth);
   estimation::PredictionRunOptions o = PredictOptions(f);
   o.truth = truth;
-  return PredictionJson(f, trace, estimation::RunPrediction(trace, o)).dump();
+  o.keep_series = true;
+  PredictResult r;
+  r.run = estimation::RunPrediction(trace, o);
+  r.json = PredictionJson(f, trace, r.run).dump();
+  return r;
 }
 
 void AddPredictCommand(CLI::App& app) {

@@ -17,9 +17,17 @@ class Predict(unittest.TestCase):
         py = echoservo.predict(r["t_s"], r["position_mm"], r["truth_mm"], truth_t_s=r["truth_t_s"],
                                latency_s=0.1)
         cl = cli_json("predict", "--realistic", "regular", "--seed", 2, "--truth", "truth", "--json")
+        series = py.pop("series")
         for k in NAMES:
             py.pop(k), cl.pop(k)
         self.assertEqual(py, cl)
+        # The series the figures come from: what shipped against the truth at each instant.
+        err = series["shipped_mm"] - series["truth_mm"]
+        self.assertEqual(len(err), py["scored"])
+        self.assertAlmostEqual(float(np.sqrt(np.mean(err ** 2))), py["shipped"]["rms_mm"], places=12)
+        self.assertTrue(np.all(np.diff(series["t_s"]) > 0))
+        self.assertEqual(len(series["competitors"]), len(py["competitors"]))
+        self.assertTrue(np.all((series["chosen"] >= 0) & (series["chosen"] < len(series["competitors"]))))
         # The heart rate: the class's rate within 5 % (issue 32's figure).
         self.assertIsNotNone(py["ekf"]["heart_rate_bpm"])
 
@@ -31,6 +39,7 @@ class Predict(unittest.TestCase):
         cl = json.loads(out)
         t, x = echoservo.read_motion_trace(path)
         py = echoservo.predict(t, x, column=cl["column"])
+        py.pop("series")
         for k in NAMES:
             py.pop(k), cl.pop(k)
         self.assertEqual(py, cl)

@@ -89,6 +89,15 @@ class Tutorial(unittest.TestCase):
         # The closed loop follows the target: the seed's water-tank result is 0.86 mm RMS.
         self.assertLess(acc["tip_to_target_rms_mm"], 1.5)
 
+    def test_predictor_claims(self):
+        pred = self.ns["pred"]
+        self.assertLess(pred["shipped"]["rms_mm"], pred["baselines"]["zero_order_hold"]["rms_mm"])
+        self.assertIsNotNone(pred["ekf"]["heart_rate_bpm"])
+        s = pred["series"]
+        self.assertAlmostEqual(float(np.sqrt(np.mean((s["shipped_mm"] - s["truth_mm"]) ** 2))),
+                               pred["shipped"]["rms_mm"], places=12)
+        self.assertGreater(os.path.getsize(os.path.join(self.ns["work"], "prediction.png")), 1000)
+
     def test_run_files(self):
         import echoservo
         from common import cli
