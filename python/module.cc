@@ -14,14 +14,28 @@
 
 namespace {
 
+// This module's file ("" when unknown).
+std::string ModuleFile() {
+  Dl_info info{};
+  if (dladdr(reinterpret_cast<void*>(&ModuleFile), &info) == 0 || !info.dli_fname) return {};
+  return info.dli_fname;
+}
+
+// Effect plugins (hw/effect_plugin.h, `--plugin`) call the hw code of the program that loads
+// them; here that code is in this module, which Python loads with RTLD_LOCAL: make its
+// symbols global, as the program exports its own.
+void ExportSymbolsToPlugins() {
+  const std::string file = ModuleFile();
+  if (!file.empty()) dlopen(file.c_str(), RTLD_NOW | RTLD_NOLOAD | RTLD_GLOBAL);
+}
+
 // The echoservo program built beside this module (build/python/../bin/echoservo), empty when
 // there is none: what `tune` starts for its trials (apps/cli.h SetProgramPath).
 std::string ProgramBesideModule() {
-  Dl_info info{};
-  if (dladdr(reinterpret_cast<void*>(&ProgramBesideModule), &info) == 0 || !info.dli_fname)
-    return {};
+  const std::string file = ModuleFile();
+  if (file.empty()) return {};
   const std::filesystem::path p =
-      std::filesystem::path(info.dli_fname).parent_path().parent_path() / "bin" / "echoservo";
+      std::filesystem::path(file).parent_path().parent_path() / "bin" / "echoservo";
   std::error_code ec;
   return std::filesystem::is_regular_file(p, ec) ? p.string() : std::string();
 }
@@ -39,6 +53,7 @@ PYBIND11_MODULE(echoservo, m) {
   FLAGS_minloglevel = google::GLOG_ERROR;
   if (!google::IsGoogleLoggingInitialized()) google::InitGoogleLogging("echoservo");
   m.attr("__version__") = "0.1.0";
+  ExportSymbolsToPlugins();
   if (const std::string program = ProgramBesideModule(); !program.empty())
     echoservo::apps::SetProgramPath(program);
   m.def("set_program", &echoservo::apps::SetProgramPath, pybind11::arg("path"),

@@ -85,7 +85,20 @@ class Simulate(unittest.TestCase):
         self.assertNotEqual(rc, 0)
         with self.assertRaises(ValueError) as e:
             echoservo.simulate("record", "--out", out, "--effects", "seed+no_such_effect")
-        self.assertIn(str(e.exception), err)
+        # The same message up to the list of known effects, which in this interpreter also
+        # holds any plugin's loaded earlier (a plugin stays loaded for the session).
+        self.assertIn(str(e.exception).split(" (known:")[0], err)
+
+
+class Plugins(unittest.TestCase):
+    def test_an_effect_plugin_loads_in_the_interpreter(self):
+        # A plugin calls the hw code of whoever loads it: here the module (its symbols global).
+        plugin = os.environ["ECHOSERVO_EXAMPLE_PLUGIN"]
+        listing = echoservo.simulate("effects", "--plugin", plugin)
+        rc, out, _ = cli("sim", "effects", "--plugin", plugin)
+        self.assertEqual(rc, 0)
+        self.assertEqual(listing, out)
+        self.assertIn("quadratic drag", listing)
 
 
 if __name__ == "__main__":
