@@ -3,7 +3,10 @@
 // `echoservo ARGS…`, their JSON returned as dicts. A failing command raises ValueError with
 // the message the program prints.
 #include <pybind11/stl.h>
+#include <sys/mman.h>
 
+#include <csignal>
+#include <fstream>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -20,6 +23,45 @@ std::mutex& CommandMutex() {
   return m;
 }
 
+// Locked memory of this process (kB, /proc/self/status VmLck), -1 when unknown.
+long LockedKb() {
+  std::ifstream in("/proc/self/status");
+  std::string key;
+  while (in >> key) {
+    if (key == "VmLck:") {
+      long kb = -1;
+      in >> kb;
+      return kb;
+    }
+    in.ignore(1 << 16, '\n');
+  }
+  return -1;
+}
+
+// What a command may change in the process and the interpreter must get back: the SIGINT and
+// SIGTERM handlers (`track` and `servo` install their own, to stop cleanly on Ctrl-C) and
+// locked memory (the servo's real-time set-up locks all of it, now and future: the
+// interpreter's too).
+class ProcessStateGuard {
+ public:
+  ProcessStateGuard() : locked_kb_(LockedKb()) {
+    sigaction(SIGINT, nullptr, &int_);
+    sigaction(SIGTERM, nullptr, &term_);
+  }
+  ~ProcessStateGuard() {
+    sigaction(SIGINT, &int_, nullptr);
+    sigaction(SIGTERM, &term_, nullptr);
+    if (locked_kb_ == 0) munlockall();
+  }
+  ProcessStateGuard(const ProcessStateGuard&) = delete;
+  ProcessStateGuard& operator=(const ProcessStateGuard&) = delete;
+
+ private:
+  long locked_kb_;
+  struct sigaction int_ {};
+  struct sigaction term_ {};
+};
+
 // The command's stdout; ValueError with its message when it fails.
 std::string Run(const std::vector<std::string>& args) {
   std::string out, err;
@@ -27,6 +69,7 @@ std::string Run(const std::vector<std::string>& args) {
   {
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(CommandMutex());
+    const ProcessStateGuard guard;
     rc = apps::RunCommand(args, out, err);
   }
   if (rc != 0) {
