@@ -40,8 +40,9 @@ def notebook(cells):
         return [p + "\n" for p in parts[:-1]] + [parts[-1]]
 
     out = []
-    for kind, source in cells:
-        cell = {"cell_type": kind, "metadata": {}, "source": lines(source)}
+    for i, (kind, source) in enumerate(cells):
+        # nbformat 4.5: every cell has an id (stable, so that the file only changes with the page).
+        cell = {"cell_type": kind, "id": f"cell-{i:02d}", "metadata": {}, "source": lines(source)}
         if kind == "code":
             cell.update({"execution_count": None, "outputs": []})
         out.append(cell)

@@ -16,7 +16,7 @@ packages=(
   libtbb-dev
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
   libssl-dev
-  python3 python3-dev python3-numpy python3-scipy python3-matplotlib pybind11-dev
+  python3 python3-dev python3-numpy python3-scipy python3-matplotlib python3-nbformat pybind11-dev
   zlib1g-dev
   xvfb
   xauth

@@ -33,6 +33,9 @@ class Tutorial(unittest.TestCase):
         code = ["".join(c["source"]) for c in nb["cells"] if c["cell_type"] == "code"]
         self.assertEqual(code, [s for k, s in self.cells if k == "code"])
         self.assertEqual(python_notebook.text(nb), python_notebook.text(python_notebook.notebook(self.cells)))
+        # A notebook Jupyter opens: nbformat's own schema check (cell ids included).
+        import nbformat
+        nbformat.validate(nbformat.reads(python_notebook.text(nb), as_version=4))
 
     def test_lab_loop_claims(self):
         ns = self.ns
