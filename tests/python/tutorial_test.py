@@ -45,6 +45,13 @@ class Tutorial(unittest.TestCase):
         # Tip error at the sensor's noise level, force error far above the force noise.
         self.assertLess(seed["rms_mm"], 1.5 * noise["tip_mm"])
         self.assertGreater(seed["force_rms_n"], 5 * noise["force_n"])
+        # The residual files' columns are what the figures come from: their RMS over every
+        # sample is the fit's tip and force RMS.
+        fitted = ns["fitted"]
+        force = np.concatenate([t["force_n"] - t["extra"]["force_model"] for t in fitted])
+        tip = np.concatenate([t["tip_mm"] - t["extra"]["tip_model"] for t in fitted])
+        self.assertAlmostEqual(float(np.sqrt(np.mean(force ** 2))) / seed["force_rms_n"], 1, places=9)
+        self.assertAlmostEqual(float(np.sqrt(np.mean(tip ** 2))) / seed["rms_mm"], 1, places=9)
         # The missed friction grows with the bend: rank correlation, and its sign at the ends.
         bend, excess = ns["bend_deg"], ns["excess_n"]
         ranks = lambda a: np.argsort(np.argsort(a))
