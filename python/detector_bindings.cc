@@ -176,7 +176,8 @@ void RegisterDetector(py::module_& m) {
           },
           py::arg("volume"), py::arg("spacing_mm") = py::none(), py::arg("origin_mm") = py::none(),
           "Search near the previous track() result (a full search first, and whenever the\n"
-          "tracked confidence falls below min_confidence), as `detect --track`.")
+          "tracked confidence falls below min_confidence), as `detect --track`. It keeps that\n"
+          "result: call one Detector's track() from one thread at a time (detect() is stateless).")
       .def("reset", &RadonDetector::Reset,
            "forget the previous result (the next track() searches fully)");
 
