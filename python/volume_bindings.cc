@@ -186,9 +186,14 @@ void BindVolume(py::module_& m) {
       "Write a volume: .mha, .mhd (+ .raw/.zraw) or .vti by extension; zlib when compress.");
 }
 
-py::dict FrameFields(const PlusSequence& s, std::size_t i) {
+// IndexError unless `i` is one of the sequence's frames.
+void CheckFrame(const PlusSequence& s, std::size_t i) {
   if (i >= s.frames.size())
     throw py::index_error("frame " + std::to_string(i) + " of " + std::to_string(s.frames.size()));
+}
+
+py::dict FrameFields(const PlusSequence& s, std::size_t i) {
+  CheckFrame(s, i);
   py::dict d;
   for (const auto& [k, v] : s.frames[i].fields) d[py::str(k)] = v;
   return d;
@@ -284,9 +289,7 @@ void BindSequence(py::module_& m) {
       .def(
           "volume",
           [](const PlusSequence& s, std::size_t i) {
-            if (i >= s.frames.size())
-              throw py::index_error("frame " + std::to_string(i) + " of " +
-                                    std::to_string(s.frames.size()));
+            CheckFrame(s, i);
             return std::make_shared<Volume>(imaging::SequenceFrameToVolume(s, i));
           },
           py::arg("frame"),
